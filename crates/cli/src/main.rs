@@ -1,0 +1,46 @@
+//! `envision4d`: the command-line program.
+//!
+//! Exit codes: 0 success, 2 bad input (unreadable/invalid file, bad argument), 1 anything else.
+
+mod backend_choice;
+mod image_out;
+mod splat_cmd;
+
+use clap::{Parser, Subcommand};
+use std::process::ExitCode;
+
+#[derive(Parser, Debug)]
+#[command(name = "envision4d", version, about = "Envision4D: pose-free 4D future prediction with Gaussian splatting")]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+enum Command {
+    /// Render a standard 3DGS PLY file from a camera (PNG or linear EXR).
+    Splat(splat_cmd::SplatArgs),
+}
+
+/// An error caused by the user's input (exit code 2) rather than by the program.
+#[derive(Debug, thiserror::Error)]
+#[error("{0}")]
+pub struct InputError(pub String);
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Splat(args) => splat_cmd::run(args),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(err) => {
+            eprintln!("error: {err:#}");
+            if err.downcast_ref::<InputError>().is_some() {
+                ExitCode::from(2)
+            } else {
+                ExitCode::from(1)
+            }
+        }
+    }
+}

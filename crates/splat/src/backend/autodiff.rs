@@ -1,0 +1,99 @@
+//! The custom autodiff node: one Backward step with seven parents (the five Gaussian
+//! parameter tensors and the two camera tensors).
+//!
+//! The state keeps the inner-backend input primitives; the backward recomputes projection and
+//! tile lists (cheap next to compositing) instead of holding per-pixel buffers alive between
+//! the forward and backward passes.
+
+use super::{SplatGrads, SplatOps};
+use crate::config::RasterConfig;
+use burn::backend::autodiff::checkpoint::{base::Checkpointer, strategy::CheckpointStrategy};
+use burn::backend::autodiff::grads::Gradients;
+use burn::backend::autodiff::ops::{Backward, Ops, OpsKind};
+use burn::backend::autodiff::Autodiff;
+use burn::backend::tensor::{FloatTensor, IntTensor};
+use burn::backend::AutodiffBackend;
+
+#[derive(Debug)]
+struct RenderBackward;
+
+#[derive(Debug, Clone)]
+struct RenderState<B: SplatOps> {
+    inputs: [FloatTensor<B>; 7],
+    width: u32,
+    height: u32,
+    config: RasterConfig,
+}
+
+impl<B: SplatOps> Backward<B, 7> for RenderBackward {
+    type State = RenderState<B>;
+
+    fn backward(self, ops: Ops<Self::State, 7>, grads: &mut Gradients, _checkpointer: &mut Checkpointer) {
+        let grad_image = grads.consume::<B>(&ops.node);
+        let RenderState { inputs, width, height, config } = ops.state;
+        let [m, q, s, o, c, v, k] = inputs;
+        let (gm, gq, gs, go, gc, gv, gk) = B::splat_backward(m, q, s, o, c, v, k, grad_image, width, height, config);
+        for (parent, grad) in ops.parents.into_iter().zip([gm, gq, gs, go, gc, gv, gk]) {
+            if let Some(node) = parent {
+                grads.register::<B>(node.id, grad);
+            }
+        }
+    }
+}
+
+impl<B: SplatOps, C: CheckpointStrategy> SplatOps for Autodiff<B, C> {
+    fn splat_forward(
+        means: FloatTensor<Self>,
+        quats: FloatTensor<Self>,
+        scales: FloatTensor<Self>,
+        opacities: FloatTensor<Self>,
+        colors: FloatTensor<Self>,
+        viewmats: FloatTensor<Self>,
+        ks: FloatTensor<Self>,
+        width: u32,
+        height: u32,
+        config: RasterConfig,
+    ) -> (FloatTensor<Self>, IntTensor<Self>, IntTensor<Self>) {
+        let tensors = [means, quats, scales, opacities, colors, viewmats, ks];
+        let nodes = tensors.each_ref().map(|t| t.node());
+        let inner = tensors.map(|t| t.into_primitive());
+        let [m, q, s, o, c, v, k] = inner.clone();
+        let (image, radii, counts) = B::splat_forward(m, q, s, o, c, v, k, width, height, config);
+        let image = match RenderBackward.prepare::<C>(nodes).compute_bound().stateful() {
+            OpsKind::Tracked(prep) => prep.finish(RenderState { inputs: inner, width, height, config }, image),
+            OpsKind::UnTracked(prep) => prep.finish(image),
+        };
+        (image, radii, counts)
+    }
+
+    /// Gradients are computed, not differentiated again: the results are constants.
+    fn splat_backward(
+        means: FloatTensor<Self>,
+        quats: FloatTensor<Self>,
+        scales: FloatTensor<Self>,
+        opacities: FloatTensor<Self>,
+        colors: FloatTensor<Self>,
+        viewmats: FloatTensor<Self>,
+        ks: FloatTensor<Self>,
+        grad_image: FloatTensor<Self>,
+        width: u32,
+        height: u32,
+        config: RasterConfig,
+    ) -> SplatGrads<Self> {
+        let (gm, gq, gs, go, gc, gv, gk) = B::splat_backward(
+            means.into_primitive(),
+            quats.into_primitive(),
+            scales.into_primitive(),
+            opacities.into_primitive(),
+            colors.into_primitive(),
+            viewmats.into_primitive(),
+            ks.into_primitive(),
+            grad_image.into_primitive(),
+            width,
+            height,
+            config,
+        );
+        let lift = <Self as AutodiffBackend>::from_inner;
+        (lift(gm), lift(gq), lift(gs), lift(go), lift(gc), lift(gv), lift(gk))
+    }
+}

@@ -1,0 +1,74 @@
+//! Burn integration: the `SplatOps` backend extension and its autodiff node.
+//!
+//! `splat_forward` renders `[V, H, W, 5]` = (R, G, B, accumulated depth, alpha) plus
+//! non-differentiable meta; `splat_backward` is its vector-Jacobian product w.r.t. all seven
+//! inputs (Gaussians and cameras). The default bodies run the plain-Rust CPU rasterizer on
+//! host copies of the tensors: this is the implementation for burn-flex (the CPU backend).
+//! CubeCL backends override both with GPU kernels (see `cube`). The autodiff node
+//! (`autodiff`) stores the inputs and calls `splat_backward` of the inner backend.
+
+mod autodiff;
+mod cube;
+mod host;
+
+use crate::config::RasterConfig;
+use burn::backend::backend_extension;
+use burn::backend::tensor::{FloatTensor, IntTensor};
+use burn::backend::Backend;
+
+/// Gradients of the seven rasterizer inputs, in input order.
+pub type SplatGrads<B> = (
+    FloatTensor<B>,
+    FloatTensor<B>,
+    FloatTensor<B>,
+    FloatTensor<B>,
+    FloatTensor<B>,
+    FloatTensor<B>,
+    FloatTensor<B>,
+);
+
+/// The rasterizer as a Burn backend operation.
+///
+/// Shapes: means `[N,3]`, quats `[N,4]` (w,x,y,z), scales `[N,3]`, opacities `[N]`,
+/// colors `[N,3]`, viewmats `[V,4,4]` (world-to-camera, OpenCV axes), ks `[V,3,3]`.
+/// Callers validate shapes and cameras first (see [`crate::render`]).
+#[backend_extension(Cube, Flex, Autodiff)]
+pub trait SplatOps: Backend {
+    /// Returns `(image [V,H,W,5], radii [V,N,2] (int), counts [V,2] (int: visible Gaussians,
+    /// tile intersections))`.
+    #[allow(clippy::too_many_arguments)]
+    fn splat_forward(
+        means: FloatTensor<Self>,
+        quats: FloatTensor<Self>,
+        scales: FloatTensor<Self>,
+        opacities: FloatTensor<Self>,
+        colors: FloatTensor<Self>,
+        viewmats: FloatTensor<Self>,
+        ks: FloatTensor<Self>,
+        width: u32,
+        height: u32,
+        config: RasterConfig,
+    ) -> (FloatTensor<Self>, IntTensor<Self>, IntTensor<Self>) {
+        host::forward::<Self>([means, quats, scales, opacities, colors, viewmats, ks], width, height, &config)
+    }
+
+    /// Vector-Jacobian product of [`SplatOps::splat_forward`]'s image w.r.t. every input.
+    #[allow(clippy::too_many_arguments)]
+    fn splat_backward(
+        means: FloatTensor<Self>,
+        quats: FloatTensor<Self>,
+        scales: FloatTensor<Self>,
+        opacities: FloatTensor<Self>,
+        colors: FloatTensor<Self>,
+        viewmats: FloatTensor<Self>,
+        ks: FloatTensor<Self>,
+        grad_image: FloatTensor<Self>,
+        width: u32,
+        height: u32,
+        config: RasterConfig,
+    ) -> SplatGrads<Self> {
+        host::backward::<Self>([means, quats, scales, opacities, colors, viewmats, ks], grad_image, width, height, &config)
+    }
+}
+
+impl SplatOps for burn::backend::Flex {}

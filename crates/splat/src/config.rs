@@ -1,0 +1,123 @@
+//! Every constant of the rasterizer in one place.
+//!
+//! The defaults reproduce gsplat 1.5.3's `rasterization(..., render_mode="RGB+ED")`, which is
+//! what the official Envision4D decoder calls. Later gsplat releases changed the alpha clamp
+//! (0.999 → 0.99), so that constant is an explicit, selectable mode rather than a magic number.
+
+use serde::{Deserialize, Serialize};
+
+/// Side of a screen tile in pixels (gsplat's `tile_size`, Brush's `TILE_WIDTH`).
+pub const TILE_SIZE: u32 = 16;
+
+/// Largest extent of a Gaussian in standard deviations (gsplat `GAUSSIAN_EXTEND`).
+/// `sqrt(2 ln 255) = 3.329`, so for opacities <= 1 the opacity-aware bound is always tighter.
+pub const EXTENT_CAP: f64 = 3.33;
+
+/// A quaternion whose squared norm is below this cannot be normalised reliably and is culled
+/// (gsplat would produce a NaN rotation; Brush culls at 1e-6 on the squared norm).
+pub const QUAT_NORM2_MIN: f64 = 1e-12;
+
+/// Radii are reported as `i32` (gsplat's `radii`); a footprint beyond this many pixels is
+/// clamped before the integer conversion so huge-but-finite Gaussians never overflow.
+pub const RADIUS_MAX: f64 = 1.0e7;
+
+/// Which gsplat release's alpha clamp to reproduce.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum AlphaClamp {
+    /// gsplat <= 1.5.3 (the PyPI release Envision4D trained with): alpha <= 0.999.
+    #[default]
+    Gsplat153,
+    /// gsplat after commit c5ff586b (2026): alpha <= 0.99.
+    GsplatHead,
+}
+
+impl AlphaClamp {
+    /// The largest alpha a single Gaussian may reach at a pixel.
+    pub fn max_alpha(self) -> f64 {
+        match self {
+            AlphaClamp::Gsplat153 => 0.999,
+            AlphaClamp::GsplatHead => 0.99,
+        }
+    }
+}
+
+/// The rasterizer's numeric settings. `RasterConfig::default()` is gsplat 1.5.3.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct RasterConfig {
+    /// Gaussians whose camera-space depth is below this are culled (gsplat `near_plane`).
+    pub near: f64,
+    /// Gaussians whose camera-space depth is above this are culled (gsplat `far_plane`).
+    pub far: f64,
+    /// Low-pass dilation added to the 2D covariance diagonal, in pixels² (gsplat `eps2d`).
+    pub eps2d: f64,
+    /// Per-pixel alphas below this are skipped; opacities below it cull the Gaussian.
+    pub alpha_min: f64,
+    /// The alpha clamp of the gsplat release being reproduced.
+    pub alpha_clamp: AlphaClamp,
+    /// A pixel stops compositing when its transmittance would fall to or below this.
+    pub transmittance_min: f64,
+    /// Expected depth is `D / max(A, depth_eps)` (gsplat `postprocess_render_colors`).
+    pub depth_eps: f64,
+    /// Background colour composited behind the Gaussians (`None` = black, gsplat's default).
+    pub background: Option<[f64; 3]>,
+}
+
+impl Default for RasterConfig {
+    fn default() -> Self {
+        Self {
+            near: 0.01,
+            far: 1e10,
+            eps2d: 0.3,
+            alpha_min: 1.0 / 255.0,
+            alpha_clamp: AlphaClamp::Gsplat153,
+            transmittance_min: 1e-4,
+            depth_eps: 1e-10,
+            background: None,
+        }
+    }
+}
+
+impl RasterConfig {
+    /// Checks that the settings describe a usable rasterizer; the message names the field.
+    pub fn validate(&self) -> Result<(), String> {
+        let finite_pos = |name: &str, v: f64| {
+            if v.is_finite() && v > 0.0 {
+                Ok(())
+            } else {
+                Err(format!("raster config: {name} must be finite and > 0, got {v}"))
+            }
+        };
+        finite_pos("near", self.near)?;
+        finite_pos("eps2d", self.eps2d)?;
+        finite_pos("alpha_min", self.alpha_min)?;
+        finite_pos("transmittance_min", self.transmittance_min)?;
+        finite_pos("depth_eps", self.depth_eps)?;
+        if !(self.far > self.near) {
+            return Err(format!(
+                "raster config: far ({}) must be greater than near ({})",
+                self.far, self.near
+            ));
+        }
+        if self.alpha_min >= self.alpha_clamp.max_alpha() {
+            return Err(format!(
+                "raster config: alpha_min ({}) must be below the alpha clamp ({})",
+                self.alpha_min,
+                self.alpha_clamp.max_alpha()
+            ));
+        }
+        if self.transmittance_min >= 1.0 {
+            return Err(format!(
+                "raster config: transmittance_min must be < 1, got {}",
+                self.transmittance_min
+            ));
+        }
+        if let Some(bg) = self.background {
+            if bg.iter().any(|c| !c.is_finite()) {
+                return Err(format!("raster config: background must be finite, got {bg:?}"));
+            }
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,138 @@
+//! The tensor API: validate inputs, call the backend op, split its output into gsplat's
+//! RGB / expected depth / alpha, and apply the background.
+//!
+//! Expected depth and the background are plain Burn ops on the kernel's (R, G, B, D, A)
+//! output, so autodiff differentiates them exactly like gsplat's `postprocess_render_colors`.
+
+use crate::backend::SplatOps;
+use crate::camera::{Camera, CameraError};
+use crate::config::RasterConfig;
+use burn::backend::Dispatch;
+use burn::tensor::{s, Int, Tensor};
+
+/// Gaussians with activations applied (what gsplat's `rasterization` takes).
+#[derive(Debug, Clone)]
+pub struct Gaussians {
+    /// `[N, 3]` world-space centres.
+    pub means: Tensor<2>,
+    /// `[N, 4]` rotations (w, x, y, z), any norm; zero-norm ones are culled.
+    pub quats: Tensor<2>,
+    /// `[N, 3]` linear scales.
+    pub scales: Tensor<2>,
+    /// `[N]` opacities in [0, 1].
+    pub opacities: Tensor<1>,
+    /// `[N, 3]` RGB colours.
+    pub colors: Tensor<2>,
+}
+
+/// A batch of V cameras sharing one image size.
+#[derive(Debug, Clone)]
+pub struct Cameras {
+    /// `[V, 4, 4]` world-to-camera matrices (OpenCV axes: x right, y down, z forward).
+    pub viewmats: Tensor<3>,
+    /// `[V, 3, 3]` pixel intrinsics.
+    pub ks: Tensor<3>,
+    pub width: u32,
+    pub height: u32,
+}
+
+/// Non-differentiable by-products of a render (gsplat's `meta`).
+#[derive(Debug, Clone)]
+pub struct RenderMeta {
+    /// `[V, N, 2]` screen-space radii in pixels; 0 = culled in that view.
+    pub radii: Tensor<3, Int>,
+    /// `[V, 2]` = (visible Gaussians, Gaussian-tile intersections) per view.
+    pub counts: Tensor<2, Int>,
+}
+
+/// What [`render`] returns.
+#[derive(Debug, Clone)]
+pub struct RenderOutput {
+    /// `[V, H, W, 3]` colour, background composited behind.
+    pub rgb: Tensor<4>,
+    /// `[V, H, W]` expected depth `D / max(A, depth_eps)`.
+    pub depth: Tensor<3>,
+    /// `[V, H, W]` accumulated opacity.
+    pub alpha: Tensor<3>,
+    pub meta: RenderMeta,
+}
+
+/// Why a render was refused.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum RenderError {
+    #[error("splat input {name}: expected shape {expected}, got {got:?}")]
+    Shape { name: &'static str, expected: String, got: Vec<usize> },
+    #[error(transparent)]
+    Camera(#[from] CameraError),
+    #[error("{0}")]
+    Config(String),
+}
+
+fn check_shape(name: &'static str, got: &[usize], expected: &[Option<usize>]) -> Result<(), RenderError> {
+    let ok = got.len() == expected.len() && got.iter().zip(expected).all(|(g, e)| e.is_none_or(|e| e == *g));
+    if ok {
+        return Ok(());
+    }
+    let expected = expected.iter().map(|e| e.map_or("_".to_string(), |v| v.to_string())).collect::<Vec<_>>().join(", ");
+    Err(RenderError::Shape { name, expected: format!("[{expected}]"), got: got.to_vec() })
+}
+
+/// Validates shapes, the config and every camera (reading the small camera tensors back).
+pub fn validate(gaussians: &Gaussians, cameras: &Cameras, config: &RasterConfig) -> Result<(), RenderError> {
+    config.validate().map_err(RenderError::Config)?;
+    let n = gaussians.means.dims()[0];
+    check_shape("means", &gaussians.means.dims(), &[Some(n), Some(3)])?;
+    check_shape("quats", &gaussians.quats.dims(), &[Some(n), Some(4)])?;
+    check_shape("scales", &gaussians.scales.dims(), &[Some(n), Some(3)])?;
+    check_shape("opacities", &gaussians.opacities.dims(), &[Some(n)])?;
+    check_shape("colors", &gaussians.colors.dims(), &[Some(n), Some(3)])?;
+    let v = cameras.viewmats.dims()[0];
+    check_shape("viewmats", &cameras.viewmats.dims(), &[Some(v), Some(4), Some(4)])?;
+    check_shape("ks", &cameras.ks.dims(), &[Some(v), Some(3), Some(3)])?;
+    let vm: Vec<f64> = cameras.viewmats.to_data().convert::<f64>().into_vec().map_err(|e| RenderError::Config(format!("{e:?}")))?;
+    let ks: Vec<f64> = cameras.ks.to_data().convert::<f64>().into_vec().map_err(|e| RenderError::Config(format!("{e:?}")))?;
+    for i in 0..v {
+        Camera::from_matrices(i, &vm[16 * i..16 * i + 16], &ks[9 * i..9 * i + 9], cameras.width, cameras.height)?;
+    }
+    Ok(())
+}
+
+/// Renders every camera of `cameras` from `gaussians`: gsplat's `rasterization(...,
+/// render_mode="RGB+ED")`, differentiable w.r.t. all Gaussian tensors and both camera tensors.
+pub fn render(gaussians: &Gaussians, cameras: &Cameras, config: &RasterConfig) -> Result<RenderOutput, RenderError> {
+    validate(gaussians, cameras, config)?;
+    let g = gaussians.clone();
+    let c = cameras.clone();
+    let (image, radii, counts) = <Dispatch as SplatOps>::splat_forward(
+        g.means.into_dispatch(),
+        g.quats.into_dispatch(),
+        g.scales.into_dispatch(),
+        g.opacities.into_dispatch(),
+        g.colors.into_dispatch(),
+        c.viewmats.into_dispatch(),
+        c.ks.into_dispatch(),
+        c.width,
+        c.height,
+        *config,
+    );
+    let image: Tensor<4> = Tensor::from_dispatch(image);
+    let [v, h, w, _] = image.dims();
+    let color = image.clone().slice(s![.., .., .., 0..3]);
+    let accum_depth = image.clone().slice(s![.., .., .., 3..4]).reshape([v, h, w]);
+    let alpha = image.slice(s![.., .., .., 4..5]).reshape([v, h, w]);
+    let rgb = match config.background {
+        None => color,
+        Some(bg) => {
+            let bg = Tensor::<1>::from_floats([bg[0] as f32, bg[1] as f32, bg[2] as f32], &color.device()).reshape([1, 1, 1, 3]);
+            let transmittance = alpha.clone().neg().add_scalar(1.0).reshape([v, h, w, 1]);
+            color + transmittance * bg
+        }
+    };
+    let depth = accum_depth / alpha.clone().clamp_min(config.depth_eps);
+    Ok(RenderOutput {
+        rgb,
+        depth,
+        alpha,
+        meta: RenderMeta { radii: Tensor::from_dispatch(radii), counts: Tensor::from_dispatch(counts) },
+    })
+}

@@ -1,0 +1,8 @@
+//! Rasterizer tests: f64 oracle vs f32, finite-difference gradients (camera included), edge
+//! scenes from the design spec, invariances, and the Burn tensor API with autodiff.
+
+mod burn_api;
+mod common;
+mod edge;
+mod gradients;
+mod oracle;
