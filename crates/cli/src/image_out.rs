@@ -166,7 +166,7 @@ fn normalize_u16(values: &[f32]) -> Vec<u16> {
         .map(|&v| {
             if v == f32::INFINITY {
                 u16::MAX
-            } else if !v.is_finite() || !(range > 0.0) {
+            } else if !v.is_finite() || range <= 0.0 {
                 0
             } else {
                 ((v as f64 - lo as f64) / range * U16_MAX as f64).round() as u16

@@ -10,7 +10,11 @@ use clap::{Parser, Subcommand};
 use std::process::ExitCode;
 
 #[derive(Parser, Debug)]
-#[command(name = "envision4d", version, about = "Envision4D: pose-free 4D future prediction with Gaussian splatting")]
+#[command(
+    name = "envision4d",
+    version,
+    about = "Envision4D: pose-free 4D future prediction with Gaussian splatting"
+)]
 struct Cli {
     #[command(subcommand)]
     command: Command,

@@ -55,7 +55,10 @@ fn parse_rgb(s: &str) -> Result<[f64; 3], String> {
     }
     let mut rgb = [0.0; 3];
     for (slot, p) in rgb.iter_mut().zip(parts) {
-        *slot = p.trim().parse::<f64>().map_err(|e| format!("bad colour component {p:?}: {e}"))?;
+        *slot = p
+            .trim()
+            .parse::<f64>()
+            .map_err(|e| format!("bad colour component {p:?}: {e}"))?;
         if !slot.is_finite() {
             return Err(format!("colour component {p:?} is not finite"));
         }
@@ -63,17 +66,30 @@ fn parse_rgb(s: &str) -> Result<[f64; 3], String> {
     Ok(rgb)
 }
 
+/// Prefixes an error with the file it concerns, unless the message already names it.
+fn name_file(path: &std::path::Path, msg: String) -> String {
+    let shown = path.display().to_string();
+    if msg.contains(&shown) {
+        msg
+    } else {
+        format!("{shown}: {msg}")
+    }
+}
+
 pub fn run(args: SplatArgs) -> Result<()> {
     // Check every output path before the (possibly long) render.
-    let out_format = ImageFormat::from_path(&args.out).map_err(|e| InputError(format!("--out: {e}")))?;
+    let out_format =
+        ImageFormat::from_path(&args.out).map_err(|e| InputError(format!("--out: {e}")))?;
     for (flag, p) in [("--depth", &args.depth), ("--alpha", &args.alpha)] {
         if let Some(p) = p {
             ImageFormat::from_path(p).map_err(|e| InputError(format!("{flag}: {e}")))?;
         }
     }
-    let ply = read_ply(&args.ply).map_err(|e| InputError(format!("{}: {e}", args.ply.display())))?;
-    let cam = read_camera_json(&args.camera).map_err(|e| InputError(format!("{}: {e}", args.camera.display())))?;
-    cam.validate().map_err(|e| InputError(format!("{}: {e}", args.camera.display())))?;
+    let ply = read_ply(&args.ply).map_err(|e| InputError(name_file(&args.ply, e.to_string())))?;
+    let cam = read_camera_json(&args.camera)
+        .map_err(|e| InputError(name_file(&args.camera, e.to_string())))?;
+    cam.validate()
+        .map_err(|e| InputError(format!("{}: {e}", args.camera.display())))?;
     let params = ply.to_render_params();
     let n = ply.len();
 
@@ -86,7 +102,12 @@ pub fn run(args: SplatArgs) -> Result<()> {
         opacities: Tensor::from_data(f(params.opacities, vec![n]), &device),
         colors: Tensor::from_data(f(params.colors, vec![n, 3]), &device),
     };
-    let vm: Vec<f32> = cam.world_to_camera.iter().flatten().map(|v| *v as f32).collect();
+    let vm: Vec<f32> = cam
+        .world_to_camera
+        .iter()
+        .flatten()
+        .map(|v| *v as f32)
+        .collect();
     let k: Vec<f32> = cam.k_matrix().iter().flatten().map(|v| *v as f32).collect();
     let cameras = Cameras {
         viewmats: Tensor::from_data(f(vm, vec![1, 4, 4]), &device),
@@ -107,18 +128,35 @@ pub fn run(args: SplatArgs) -> Result<()> {
     let out = render(&gaussians, &cameras, &config).map_err(|e| InputError(e.to_string()))?;
     let (w, h) = (cam.width as usize, cam.height as usize);
     let read = |t: Tensor<3>| -> Result<Vec<f32>> {
-        t.into_data().convert::<f32>().into_vec::<f32>().map_err(|e| anyhow::anyhow!("reading the render back: {e:?}"))
+        t.into_data()
+            .convert::<f32>()
+            .try_into_vec::<f32>()
+            .map_err(|e| anyhow::anyhow!("reading the render back: {e:?}"))
     };
-    let rgb = out.rgb.reshape([h, w, 3]).into_data().convert::<f32>().into_vec::<f32>().map_err(|e| anyhow::anyhow!("{e:?}"))?;
-    let counts = out.meta.counts.into_data().convert::<i64>().into_vec::<i64>().map_err(|e| anyhow::anyhow!("{e:?}"))?;
+    let rgb = out
+        .rgb
+        .reshape([h, w, 3])
+        .into_data()
+        .convert::<f32>()
+        .try_into_vec::<f32>()
+        .map_err(|e| anyhow::anyhow!("{e:?}"))?;
+    let counts = out
+        .meta
+        .counts
+        .into_data()
+        .convert::<i64>()
+        .try_into_vec::<i64>()
+        .map_err(|e| anyhow::anyhow!("{e:?}"))?;
     let elapsed = start.elapsed();
 
     write_rgb(&args.out, w, h, &rgb).with_context(|| format!("writing {}", args.out.display()))?;
     if let Some(p) = &args.depth {
-        write_gray(p, w, h, &read(out.depth)?).with_context(|| format!("writing {}", p.display()))?;
+        write_gray(p, w, h, &read(out.depth)?)
+            .with_context(|| format!("writing {}", p.display()))?;
     }
     if let Some(p) = &args.alpha {
-        write_gray(p, w, h, &read(out.alpha)?).with_context(|| format!("writing {}", p.display()))?;
+        write_gray(p, w, h, &read(out.alpha)?)
+            .with_context(|| format!("writing {}", p.display()))?;
     }
     println!(
         "rendered {n} Gaussians ({} visible, {} tile intersections) at {w}x{h} on {:?} in {:.1} ms -> {} ({out_format:?})",

@@ -25,11 +25,23 @@ pub struct Camera<F> {
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum CameraError {
     #[error("camera {view}: image size must be at least 1x1, got {width}x{height}")]
-    EmptyImage { view: usize, width: u32, height: u32 },
+    EmptyImage {
+        view: usize,
+        width: u32,
+        height: u32,
+    },
     #[error("camera {view}: {name} must be finite and > 0, got {value}")]
-    BadFocal { view: usize, name: &'static str, value: f64 },
+    BadFocal {
+        view: usize,
+        name: &'static str,
+        value: f64,
+    },
     #[error("camera {view}: {name} must be finite, got {value}")]
-    NonFinite { view: usize, name: &'static str, value: f64 },
+    NonFinite {
+        view: usize,
+        name: &'static str,
+        value: f64,
+    },
     #[error("camera {view}: world_to_camera rotation block is singular (det = {det:e})")]
     Singular { view: usize, det: f64 },
 }
@@ -46,9 +58,19 @@ pub struct FrustumLimits<F> {
 impl<F: Real> Camera<F> {
     /// Builds a camera from a row-major 4x4 world-to-camera matrix and a row-major 3x3 `K`
     /// (skew and the last row of `K` are ignored, as in gsplat), validating it.
-    pub fn from_matrices(view: usize, viewmat: &[F], k: &[F], width: u32, height: u32) -> Result<Self, CameraError> {
+    pub fn from_matrices(
+        view: usize,
+        viewmat: &[F],
+        k: &[F],
+        width: u32,
+        height: u32,
+    ) -> Result<Self, CameraError> {
         if width == 0 || height == 0 {
-            return Err(CameraError::EmptyImage { view, width, height });
+            return Err(CameraError::EmptyImage {
+                view,
+                width,
+                height,
+            });
         }
         let cam = Camera {
             rot: Mat3([
@@ -71,16 +93,28 @@ impl<F: Real> Camera<F> {
     fn validate(&self, view: usize) -> Result<(), CameraError> {
         for (name, v) in [("fx", self.fx), ("fy", self.fy)] {
             if !(v.is_finite() && v > F::zero()) {
-                return Err(CameraError::BadFocal { view, name, value: v.to_f64_lossy() });
+                return Err(CameraError::BadFocal {
+                    view,
+                    name,
+                    value: v.to_f64_lossy(),
+                });
             }
         }
         for (name, v) in [("cx", self.cx), ("cy", self.cy)] {
             if !v.is_finite() {
-                return Err(CameraError::NonFinite { view, name, value: v.to_f64_lossy() });
+                return Err(CameraError::NonFinite {
+                    view,
+                    name,
+                    value: v.to_f64_lossy(),
+                });
             }
         }
         if !self.rot.is_finite() || !self.trans.iter().all(|v| v.is_finite()) {
-            return Err(CameraError::NonFinite { view, name: "world_to_camera", value: f64::NAN });
+            return Err(CameraError::NonFinite {
+                view,
+                name: "world_to_camera",
+                value: f64::NAN,
+            });
         }
         let det = self.rot.det().to_f64_lossy();
         if !(det.abs() > 1e-12) {
@@ -126,7 +160,14 @@ pub struct CameraGrad<F> {
 
 impl<F: Real> CameraGrad<F> {
     pub fn zero() -> Self {
-        CameraGrad { rot: Mat3::zero(), trans: [F::zero(); 3], fx: F::zero(), fy: F::zero(), cx: F::zero(), cy: F::zero() }
+        CameraGrad {
+            rot: Mat3::zero(),
+            trans: [F::zero(); 3],
+            fx: F::zero(),
+            fy: F::zero(),
+            cx: F::zero(),
+            cy: F::zero(),
+        }
     }
 
     pub fn accumulate(&mut self, o: &Self) {
@@ -146,7 +187,10 @@ impl<F: Real> CameraGrad<F> {
         let t = &self.trans;
         let z = F::zero();
         (
-            [r[0][0], r[0][1], r[0][2], t[0], r[1][0], r[1][1], r[1][2], t[1], r[2][0], r[2][1], r[2][2], t[2], z, z, z, z],
+            [
+                r[0][0], r[0][1], r[0][2], t[0], r[1][0], r[1][1], r[1][2], t[1], r[2][0], r[2][1],
+                r[2][2], t[2], z, z, z, z,
+            ],
             [self.fx, z, self.cx, z, self.fy, self.cy, z, z, z],
         )
     }

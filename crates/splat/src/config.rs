@@ -86,7 +86,9 @@ impl RasterConfig {
             if v.is_finite() && v > 0.0 {
                 Ok(())
             } else {
-                Err(format!("raster config: {name} must be finite and > 0, got {v}"))
+                Err(format!(
+                    "raster config: {name} must be finite and > 0, got {v}"
+                ))
             }
         };
         finite_pos("near", self.near)?;
@@ -115,7 +117,9 @@ impl RasterConfig {
         }
         if let Some(bg) = self.background {
             if bg.iter().any(|c| !c.is_finite()) {
-                return Err(format!("raster config: background must be finite, got {bg:?}"));
+                return Err(format!(
+                    "raster config: background must be finite, got {bg:?}"
+                ));
             }
         }
         Ok(())

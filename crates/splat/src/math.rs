@@ -30,7 +30,8 @@ impl<F: Real> Mat3<F> {
         let mut r = Self::zero();
         for i in 0..3 {
             for j in 0..3 {
-                r.0[i][j] = self.0[i][0] * o.0[0][j] + self.0[i][1] * o.0[1][j] + self.0[i][2] * o.0[2][j];
+                r.0[i][j] =
+                    self.0[i][0] * o.0[0][j] + self.0[i][1] * o.0[1][j] + self.0[i][2] * o.0[2][j];
             }
         }
         r
@@ -67,7 +68,8 @@ impl<F: Real> Mat3<F> {
 
     pub fn det(&self) -> F {
         let m = &self.0;
-        m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1]) - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
+        m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1])
+            - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
             + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0])
     }
 
@@ -92,7 +94,11 @@ impl<F: Real> Sym2<F> {
     /// Inverse given a precomputed determinant (callers cull `det <= 0` first).
     pub fn inverse_with_det(&self, det: F) -> Self {
         let inv = F::one() / det;
-        Sym2 { a: self.c * inv, b: -self.b * inv, c: self.a * inv }
+        Sym2 {
+            a: self.c * inv,
+            b: -self.b * inv,
+            c: self.a * inv,
+        }
     }
 
     pub fn is_finite(&self) -> bool {
@@ -106,9 +112,21 @@ pub fn quat_to_rotmat<F: Real>(q: [F; 4]) -> Mat3<F> {
     let two = F::lit(2.0);
     let one = F::one();
     Mat3([
-        [one - two * (y * y + z * z), two * (x * y - w * z), two * (x * z + w * y)],
-        [two * (x * y + w * z), one - two * (x * x + z * z), two * (y * z - w * x)],
-        [two * (x * z - w * y), two * (y * z + w * x), one - two * (x * x + y * y)],
+        [
+            one - two * (y * y + z * z),
+            two * (x * y - w * z),
+            two * (x * z + w * y),
+        ],
+        [
+            two * (x * y + w * z),
+            one - two * (x * x + z * z),
+            two * (y * z - w * x),
+        ],
+        [
+            two * (x * z - w * y),
+            two * (y * z + w * x),
+            one - two * (x * x + y * y),
+        ],
     ])
 }
 
@@ -166,7 +184,11 @@ pub fn covariance<F: Real>(rq: &Mat3<F>, s: Vec3<F>) -> (Mat3<F>, Mat3<F>) {
 pub fn congruence_2x3<F: Real>(a: &[[F; 3]; 2], x: &Mat3<F>) -> Sym2<F> {
     let ax0 = row_times(&a[0], x);
     let ax1 = row_times(&a[1], x);
-    Sym2 { a: dot3(&ax0, &a[0]), b: dot3(&ax0, &a[1]), c: dot3(&ax1, &a[1]) }
+    Sym2 {
+        a: dot3(&ax0, &a[0]),
+        b: dot3(&ax0, &a[1]),
+        c: dot3(&ax1, &a[1]),
+    }
 }
 
 fn row_times<F: Real>(r: &[F; 3], x: &Mat3<F>) -> [F; 3] {
@@ -186,7 +208,11 @@ pub fn dot3<F: Real>(a: &[F; 3], b: &[F; 3]) -> F {
 /// hence the halving of the off-diagonal (the classic bug this guards against).
 pub fn conic_vjp<F: Real>(q: &Sym2<F>, g: [F; 3]) -> Sym2<F> {
     let half = F::lit(0.5);
-    let gq = Sym2 { a: g[0], b: g[1] * half, c: g[2] };
+    let gq = Sym2 {
+        a: g[0],
+        b: g[1] * half,
+        c: g[2],
+    };
     // dΣ' = -Q G Q, with Q, G symmetric.
     let qg00 = q.a * gq.a + q.b * gq.b;
     let qg01 = q.a * gq.b + q.b * gq.c;

@@ -8,7 +8,7 @@ use crate::backend::SplatOps;
 use crate::camera::{Camera, CameraError};
 use crate::config::RasterConfig;
 use burn::backend::Dispatch;
-use burn::tensor::{s, Int, Tensor};
+use burn::tensor::{s, Int, Tensor, TensorData};
 
 /// Gaussians with activations applied (what gsplat's `rasterization` takes).
 #[derive(Debug, Clone)]
@@ -61,24 +61,48 @@ pub struct RenderOutput {
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum RenderError {
     #[error("splat input {name}: expected shape {expected}, got {got:?}")]
-    Shape { name: &'static str, expected: String, got: Vec<usize> },
+    Shape {
+        name: &'static str,
+        expected: String,
+        got: Vec<usize>,
+    },
     #[error(transparent)]
     Camera(#[from] CameraError),
     #[error("{0}")]
     Config(String),
 }
 
-fn check_shape(name: &'static str, got: &[usize], expected: &[Option<usize>]) -> Result<(), RenderError> {
-    let ok = got.len() == expected.len() && got.iter().zip(expected).all(|(g, e)| e.is_none_or(|e| e == *g));
+fn check_shape(
+    name: &'static str,
+    got: &[usize],
+    expected: &[Option<usize>],
+) -> Result<(), RenderError> {
+    let ok = got.len() == expected.len()
+        && got
+            .iter()
+            .zip(expected)
+            .all(|(g, e)| e.is_none_or(|e| e == *g));
     if ok {
         return Ok(());
     }
-    let expected = expected.iter().map(|e| e.map_or("_".to_string(), |v| v.to_string())).collect::<Vec<_>>().join(", ");
-    Err(RenderError::Shape { name, expected: format!("[{expected}]"), got: got.to_vec() })
+    let expected = expected
+        .iter()
+        .map(|e| e.map_or("_".to_string(), |v| v.to_string()))
+        .collect::<Vec<_>>()
+        .join(", ");
+    Err(RenderError::Shape {
+        name,
+        expected: format!("[{expected}]"),
+        got: got.to_vec(),
+    })
 }
 
 /// Validates shapes, the config and every camera (reading the small camera tensors back).
-pub fn validate(gaussians: &Gaussians, cameras: &Cameras, config: &RasterConfig) -> Result<(), RenderError> {
+pub fn validate(
+    gaussians: &Gaussians,
+    cameras: &Cameras,
+    config: &RasterConfig,
+) -> Result<(), RenderError> {
     config.validate().map_err(RenderError::Config)?;
     let n = gaussians.means.dims()[0];
     check_shape("means", &gaussians.means.dims(), &[Some(n), Some(3)])?;
@@ -87,19 +111,43 @@ pub fn validate(gaussians: &Gaussians, cameras: &Cameras, config: &RasterConfig)
     check_shape("opacities", &gaussians.opacities.dims(), &[Some(n)])?;
     check_shape("colors", &gaussians.colors.dims(), &[Some(n), Some(3)])?;
     let v = cameras.viewmats.dims()[0];
-    check_shape("viewmats", &cameras.viewmats.dims(), &[Some(v), Some(4), Some(4)])?;
+    check_shape(
+        "viewmats",
+        &cameras.viewmats.dims(),
+        &[Some(v), Some(4), Some(4)],
+    )?;
     check_shape("ks", &cameras.ks.dims(), &[Some(v), Some(3), Some(3)])?;
-    let vm: Vec<f64> = cameras.viewmats.to_data().convert::<f64>().into_vec().map_err(|e| RenderError::Config(format!("{e:?}")))?;
-    let ks: Vec<f64> = cameras.ks.to_data().convert::<f64>().into_vec().map_err(|e| RenderError::Config(format!("{e:?}")))?;
+    let vm: Vec<f64> = cameras
+        .viewmats
+        .to_data()
+        .convert::<f64>()
+        .try_into_vec()
+        .map_err(|e| RenderError::Config(format!("{e:?}")))?;
+    let ks: Vec<f64> = cameras
+        .ks
+        .to_data()
+        .convert::<f64>()
+        .try_into_vec()
+        .map_err(|e| RenderError::Config(format!("{e:?}")))?;
     for i in 0..v {
-        Camera::from_matrices(i, &vm[16 * i..16 * i + 16], &ks[9 * i..9 * i + 9], cameras.width, cameras.height)?;
+        Camera::from_matrices(
+            i,
+            &vm[16 * i..16 * i + 16],
+            &ks[9 * i..9 * i + 9],
+            cameras.width,
+            cameras.height,
+        )?;
     }
     Ok(())
 }
 
 /// Renders every camera of `cameras` from `gaussians`: gsplat's `rasterization(...,
 /// render_mode="RGB+ED")`, differentiable w.r.t. all Gaussian tensors and both camera tensors.
-pub fn render(gaussians: &Gaussians, cameras: &Cameras, config: &RasterConfig) -> Result<RenderOutput, RenderError> {
+pub fn render(
+    gaussians: &Gaussians,
+    cameras: &Cameras,
+    config: &RasterConfig,
+) -> Result<RenderOutput, RenderError> {
     validate(gaussians, cameras, config)?;
     let g = gaussians.clone();
     let c = cameras.clone();
@@ -123,7 +171,12 @@ pub fn render(gaussians: &Gaussians, cameras: &Cameras, config: &RasterConfig) -
     let rgb = match config.background {
         None => color,
         Some(bg) => {
-            let bg = Tensor::<1>::from_floats([bg[0] as f32, bg[1] as f32, bg[2] as f32], &color.device()).reshape([1, 1, 1, 3]);
+            // Same dtype as the render so f64 (oracle) renders stay f64.
+            let bg = Tensor::<1>::from_data(
+                TensorData::new(bg.to_vec(), [3]),
+                (&color.device(), color.dtype()),
+            )
+            .reshape([1, 1, 1, 3]);
             let transmittance = alpha.clone().neg().add_scalar(1.0).reshape([v, h, w, 1]);
             color + transmittance * bg
         }
@@ -133,6 +186,9 @@ pub fn render(gaussians: &Gaussians, cameras: &Cameras, config: &RasterConfig) -
         rgb,
         depth,
         alpha,
-        meta: RenderMeta { radii: Tensor::from_dispatch(radii), counts: Tensor::from_dispatch(counts) },
+        meta: RenderMeta {
+            radii: Tensor::from_dispatch(radii),
+            counts: Tensor::from_dispatch(counts),
+        },
     })
 }

@@ -50,7 +50,12 @@ pub struct SceneSpec {
 
 impl Default for SceneSpec {
     fn default() -> Self {
-        SceneSpec { xy: 1.0, z: (2.0, 4.0), scale: (0.05, 0.25), opacity: (0.5, 0.95) }
+        SceneSpec {
+            xy: 1.0,
+            z: (2.0, 4.0),
+            scale: (0.05, 0.25),
+            opacity: (0.5, 0.95),
+        }
     }
 }
 
@@ -63,7 +68,14 @@ impl HostScene {
         self.opacities.is_empty()
     }
 
-    pub fn push(&mut self, mean: [f64; 3], quat: [f64; 4], scale: [f64; 3], opacity: f64, color: [f64; 3]) {
+    pub fn push(
+        &mut self,
+        mean: [f64; 3],
+        quat: [f64; 4],
+        scale: [f64; 3],
+        opacity: f64,
+        color: [f64; 3],
+    ) {
         self.means.extend_from_slice(&mean);
         self.quats.extend_from_slice(&quat);
         self.scales.extend_from_slice(&scale);
@@ -73,7 +85,13 @@ impl HostScene {
 
     pub fn to_f32(&self) -> [Vec<f32>; 5] {
         let c = |v: &Vec<f64>| v.iter().map(|x| *x as f32).collect::<Vec<f32>>();
-        [c(&self.means), c(&self.quats), c(&self.scales), c(&self.opacities), c(&self.colors)]
+        [
+            c(&self.means),
+            c(&self.quats),
+            c(&self.scales),
+            c(&self.opacities),
+            c(&self.colors),
+        ]
     }
 }
 
@@ -83,9 +101,22 @@ pub fn random_scene(n: usize, seed: u64, spec: SceneSpec) -> HostScene {
     let mut s = HostScene::default();
     for _ in 0..n {
         let z = rng.range(spec.z.0, spec.z.1);
-        let mean = [rng.range(-spec.xy, spec.xy) * z / 3.0, rng.range(-spec.xy, spec.xy) * z / 3.0, z];
-        let quat = [rng.range(-1.0, 1.0), rng.range(-1.0, 1.0), rng.range(-1.0, 1.0), rng.range(-1.0, 1.0)];
-        let scale = [rng.range(spec.scale.0, spec.scale.1), rng.range(spec.scale.0, spec.scale.1), rng.range(spec.scale.0, spec.scale.1)];
+        let mean = [
+            rng.range(-spec.xy, spec.xy) * z / 3.0,
+            rng.range(-spec.xy, spec.xy) * z / 3.0,
+            z,
+        ];
+        let quat = [
+            rng.range(-1.0, 1.0),
+            rng.range(-1.0, 1.0),
+            rng.range(-1.0, 1.0),
+            rng.range(-1.0, 1.0),
+        ];
+        let scale = [
+            rng.range(spec.scale.0, spec.scale.1),
+            rng.range(spec.scale.0, spec.scale.1),
+            rng.range(spec.scale.0, spec.scale.1),
+        ];
         let opacity = rng.range(spec.opacity.0, spec.opacity.1);
         let color = [rng.unit(), rng.unit(), rng.unit()];
         s.push(mean, quat, scale, opacity, color);
@@ -101,25 +132,46 @@ pub fn look_at(eye: [f64; 3], target: [f64; 3]) -> [f64; 16] {
         let l = (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt();
         [a[0] / l, a[1] / l, a[2] / l]
     };
-    let cross = |a: [f64; 3], b: [f64; 3]| [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]];
+    let cross = |a: [f64; 3], b: [f64; 3]| {
+        [
+            a[1] * b[2] - a[2] * b[1],
+            a[2] * b[0] - a[0] * b[2],
+            a[0] * b[1] - a[1] * b[0],
+        ]
+    };
     let f = norm(sub(target, eye));
     let down = [0.0, 1.0, 0.0];
     let r = norm(cross(down, f));
     let d = cross(f, r);
     let rows = [r, d, f];
-    let t: Vec<f64> = rows.iter().map(|row| -(row[0] * eye[0] + row[1] * eye[1] + row[2] * eye[2])).collect();
+    let t: Vec<f64> = rows
+        .iter()
+        .map(|row| -(row[0] * eye[0] + row[1] * eye[1] + row[2] * eye[2]))
+        .collect();
     [
-        rows[0][0], rows[0][1], rows[0][2], t[0], rows[1][0], rows[1][1], rows[1][2], t[1], rows[2][0], rows[2][1], rows[2][2], t[2], 0.0, 0.0,
-        0.0, 1.0,
+        rows[0][0], rows[0][1], rows[0][2], t[0], rows[1][0], rows[1][1], rows[1][2], t[1],
+        rows[2][0], rows[2][1], rows[2][2], t[2], 0.0, 0.0, 0.0, 1.0,
     ]
 }
 
 /// Identity world-to-camera matrix (camera at the origin looking down +z).
 pub fn identity_view() -> [f64; 16] {
-    [1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0]
+    [
+        1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0,
+    ]
 }
 
 /// Row-major K with square pixels and the principal point at the image centre.
 pub fn intrinsics(width: u32, height: u32, focal: f64) -> [f64; 9] {
-    [focal, 0.0, width as f64 / 2.0, 0.0, focal, height as f64 / 2.0, 0.0, 0.0, 1.0]
+    [
+        focal,
+        0.0,
+        width as f64 / 2.0,
+        0.0,
+        focal,
+        height as f64 / 2.0,
+        0.0,
+        0.0,
+        1.0,
+    ]
 }

@@ -28,12 +28,30 @@ struct RenderState<B: SplatOps> {
 impl<B: SplatOps> Backward<B, 7> for RenderBackward {
     type State = RenderState<B>;
 
-    fn backward(self, ops: Ops<Self::State, 7>, grads: &mut Gradients, _checkpointer: &mut Checkpointer) {
+    fn backward(
+        self,
+        ops: Ops<Self::State, 7>,
+        grads: &mut Gradients,
+        _checkpointer: &mut Checkpointer,
+    ) {
         let grad_image = grads.consume::<B>(&ops.node);
-        let RenderState { inputs, width, height, config } = ops.state;
+        let RenderState {
+            inputs,
+            width,
+            height,
+            config,
+        } = ops.state;
         let [m, q, s, o, c, v, k] = inputs;
-        let (gm, gq, gs, go, gc, gv, gk) = B::splat_backward(m, q, s, o, c, v, k, grad_image, width, height, config);
-        for (parent, grad) in ops.parents.into_iter().zip([gm, gq, gs, go, gc, gv, gk]) {
+        let g = B::splat_backward(m, q, s, o, c, v, k, grad_image, width, height, config);
+        for (parent, grad) in ops.parents.into_iter().zip([
+            g.means,
+            g.quats,
+            g.scales,
+            g.opacities,
+            g.colors,
+            g.viewmats,
+            g.ks,
+        ]) {
             if let Some(node) = parent {
                 grads.register::<B>(node.id, grad);
             }
@@ -59,8 +77,20 @@ impl<B: SplatOps, C: CheckpointStrategy> SplatOps for Autodiff<B, C> {
         let inner = tensors.map(|t| t.into_primitive());
         let [m, q, s, o, c, v, k] = inner.clone();
         let (image, radii, counts) = B::splat_forward(m, q, s, o, c, v, k, width, height, config);
-        let image = match RenderBackward.prepare::<C>(nodes).compute_bound().stateful() {
-            OpsKind::Tracked(prep) => prep.finish(RenderState { inputs: inner, width, height, config }, image),
+        let image = match RenderBackward
+            .prepare::<C>(nodes)
+            .compute_bound()
+            .stateful()
+        {
+            OpsKind::Tracked(prep) => prep.finish(
+                RenderState {
+                    inputs: inner,
+                    width,
+                    height,
+                    config,
+                },
+                image,
+            ),
             OpsKind::UnTracked(prep) => prep.finish(image),
         };
         (image, radii, counts)
@@ -80,7 +110,7 @@ impl<B: SplatOps, C: CheckpointStrategy> SplatOps for Autodiff<B, C> {
         height: u32,
         config: RasterConfig,
     ) -> SplatGrads<Self> {
-        let (gm, gq, gs, go, gc, gv, gk) = B::splat_backward(
+        let g = B::splat_backward(
             means.into_primitive(),
             quats.into_primitive(),
             scales.into_primitive(),
@@ -94,6 +124,14 @@ impl<B: SplatOps, C: CheckpointStrategy> SplatOps for Autodiff<B, C> {
             config,
         );
         let lift = <Self as AutodiffBackend>::from_inner;
-        (lift(gm), lift(gq), lift(gs), lift(go), lift(gc), lift(gv), lift(gk))
+        SplatGrads {
+            means: lift(g.means),
+            quats: lift(g.quats),
+            scales: lift(g.scales),
+            opacities: lift(g.opacities),
+            colors: lift(g.colors),
+            viewmats: lift(g.viewmats),
+            ks: lift(g.ks),
+        }
     }
 }

@@ -12,11 +12,19 @@ use burn::backend::{Backend, TensorMetadata};
 use burn::tensor::{read_sync, DType, Element, TensorData};
 
 fn to_host<B: Backend, F: Real + Element>(t: FloatTensor<B>) -> Vec<F> {
-    let data = read_sync(B::float_into_data(t)).unwrap_or_else(|e| panic!("splat: reading a tensor back from the device failed: {e:?}"));
-    data.convert::<F>().into_vec::<F>().unwrap_or_else(|e| panic!("splat: tensor conversion failed: {e:?}"))
+    let data = read_sync(B::float_into_data(t))
+        .unwrap_or_else(|e| panic!("splat: reading a tensor back from the device failed: {e:?}"));
+    data.convert::<F>()
+        .try_into_vec::<F>()
+        .unwrap_or_else(|e| panic!("splat: tensor conversion failed: {e:?}"))
 }
 
-fn from_host<B: Backend, F: Real + Element>(v: Vec<F>, shape: Vec<usize>, device: &B::Device, dtype: DType) -> FloatTensor<B> {
+fn from_host<B: Backend, F: Real + Element>(
+    v: Vec<F>,
+    shape: Vec<usize>,
+    device: &B::Device,
+    dtype: DType,
+) -> FloatTensor<B> {
     B::float_from_data(TensorData::new(v, shape).convert_dtype(dtype), device)
 }
 
@@ -24,13 +32,26 @@ fn from_host<B: Backend, F: Real + Element>(v: Vec<F>, shape: Vec<usize>, device
 fn cameras<F: Real>(viewmats: &[F], ks: &[F], width: u32, height: u32) -> Vec<Camera<F>> {
     (0..viewmats.len() / 16)
         .map(|v| {
-            Camera::from_matrices(v, &viewmats[16 * v..16 * v + 16], &ks[9 * v..9 * v + 9], width, height)
-                .unwrap_or_else(|e| panic!("splat: invalid camera reached the kernel (validate first): {e}"))
+            Camera::from_matrices(
+                v,
+                &viewmats[16 * v..16 * v + 16],
+                &ks[9 * v..9 * v + 9],
+                width,
+                height,
+            )
+            .unwrap_or_else(|e| {
+                panic!("splat: invalid camera reached the kernel (validate first): {e}")
+            })
         })
         .collect()
 }
 
-pub fn forward<B: Backend>(inputs: [FloatTensor<B>; 7], width: u32, height: u32, cfg: &RasterConfig) -> (FloatTensor<B>, IntTensor<B>, IntTensor<B>) {
+pub fn forward<B: Backend>(
+    inputs: [FloatTensor<B>; 7],
+    width: u32,
+    height: u32,
+    cfg: &RasterConfig,
+) -> (FloatTensor<B>, IntTensor<B>, IntTensor<B>) {
     if inputs[0].dtype() == DType::F64 {
         forward_in::<B, f64>(inputs, width, height, cfg)
     } else {
@@ -38,23 +59,50 @@ pub fn forward<B: Backend>(inputs: [FloatTensor<B>; 7], width: u32, height: u32,
     }
 }
 
-fn forward_in<B: Backend, F: Real + Element>(inputs: [FloatTensor<B>; 7], width: u32, height: u32, cfg: &RasterConfig) -> (FloatTensor<B>, IntTensor<B>, IntTensor<B>) {
+fn forward_in<B: Backend, F: Real + Element>(
+    inputs: [FloatTensor<B>; 7],
+    width: u32,
+    height: u32,
+    cfg: &RasterConfig,
+) -> (FloatTensor<B>, IntTensor<B>, IntTensor<B>) {
     let device = inputs[0].device();
     let dtype = inputs[0].dtype();
     let [means, quats, scales, opacities, colors, viewmats, ks] = inputs.map(to_host::<B, F>);
-    let scene = Scene { means: &means, quats: &quats, scales: &scales, opacities: &opacities, colors: &colors };
+    let scene = Scene {
+        means: &means,
+        quats: &quats,
+        scales: &scales,
+        opacities: &opacities,
+        colors: &colors,
+    };
     let cams = cameras(&viewmats, &ks, width, height);
     let out = cpu::render_forward(&scene, &cams, cfg);
     let v = cams.len();
     let n = scene.len();
-    let image = from_host::<B, F>(out.image, vec![v, height as usize, width as usize, OUT_CHANNELS], &device, dtype);
+    let image = from_host::<B, F>(
+        out.image,
+        vec![v, height as usize, width as usize, OUT_CHANNELS],
+        &device,
+        dtype,
+    );
     let radii = B::int_from_data(TensorData::new(out.radii, vec![v, n, 2]), &device);
-    let counts: Vec<i64> = out.visible.iter().zip(&out.intersections).flat_map(|(a, b)| [*a as i64, *b as i64]).collect();
+    let counts: Vec<i64> = out
+        .visible
+        .iter()
+        .zip(&out.intersections)
+        .flat_map(|(a, b)| [*a as i64, *b as i64])
+        .collect();
     let counts = B::int_from_data(TensorData::new(counts, vec![v, 2]), &device);
     (image, radii, counts)
 }
 
-pub fn backward<B: Backend>(inputs: [FloatTensor<B>; 7], grad_image: FloatTensor<B>, width: u32, height: u32, cfg: &RasterConfig) -> SplatGrads<B> {
+pub fn backward<B: Backend>(
+    inputs: [FloatTensor<B>; 7],
+    grad_image: FloatTensor<B>,
+    width: u32,
+    height: u32,
+    cfg: &RasterConfig,
+) -> SplatGrads<B> {
     if inputs[0].dtype() == DType::F64 {
         backward_in::<B, f64>(inputs, grad_image, width, height, cfg)
     } else {
@@ -62,15 +110,35 @@ pub fn backward<B: Backend>(inputs: [FloatTensor<B>; 7], grad_image: FloatTensor
     }
 }
 
-fn backward_in<B: Backend, F: Real + Element>(inputs: [FloatTensor<B>; 7], grad_image: FloatTensor<B>, width: u32, height: u32, cfg: &RasterConfig) -> SplatGrads<B> {
+fn backward_in<B: Backend, F: Real + Element>(
+    inputs: [FloatTensor<B>; 7],
+    grad_image: FloatTensor<B>,
+    width: u32,
+    height: u32,
+    cfg: &RasterConfig,
+) -> SplatGrads<B> {
     let device = inputs[0].device();
     let dtype = inputs[0].dtype();
     let shapes: Vec<Vec<usize>> = inputs.iter().map(|t| t.shape().to_vec()).collect();
     let [means, quats, scales, opacities, colors, viewmats, ks] = inputs.map(to_host::<B, F>);
     let grad = to_host::<B, F>(grad_image);
-    let scene = Scene { means: &means, quats: &quats, scales: &scales, opacities: &opacities, colors: &colors };
+    let scene = Scene {
+        means: &means,
+        quats: &quats,
+        scales: &scales,
+        opacities: &opacities,
+        colors: &colors,
+    };
     let cams = cameras(&viewmats, &ks, width, height);
     let g = cpu::render_backward(&scene, &cams, cfg, &grad);
     let t = |v: Vec<F>, k: usize| from_host::<B, F>(v, shapes[k].clone(), &device, dtype);
-    (t(g.means, 0), t(g.quats, 1), t(g.scales, 2), t(g.opacities, 3), t(g.colors, 4), t(g.viewmats, 5), t(g.ks, 6))
+    SplatGrads {
+        means: t(g.means, 0),
+        quats: t(g.quats, 1),
+        scales: t(g.scales, 2),
+        opacities: t(g.opacities, 3),
+        colors: t(g.colors, 4),
+        viewmats: t(g.viewmats, 5),
+        ks: t(g.ks, 6),
+    }
 }

@@ -12,20 +12,23 @@ mod cube;
 mod host;
 
 use crate::config::RasterConfig;
-use burn::backend::backend_extension;
 use burn::backend::tensor::{FloatTensor, IntTensor};
 use burn::backend::Backend;
+use burn::backend::{backend_extension, ExtensionType};
 
-/// Gradients of the seven rasterizer inputs, in input order.
-pub type SplatGrads<B> = (
-    FloatTensor<B>,
-    FloatTensor<B>,
-    FloatTensor<B>,
-    FloatTensor<B>,
-    FloatTensor<B>,
-    FloatTensor<B>,
-    FloatTensor<B>,
-);
+/// Gradients of the seven rasterizer inputs (same shapes as the inputs).
+#[derive(ExtensionType)]
+pub struct SplatGrads<B: Backend> {
+    pub means: FloatTensor<B>,
+    pub quats: FloatTensor<B>,
+    pub scales: FloatTensor<B>,
+    pub opacities: FloatTensor<B>,
+    pub colors: FloatTensor<B>,
+    /// `[V, 4, 4]`, bottom rows zero.
+    pub viewmats: FloatTensor<B>,
+    /// `[V, 3, 3]`, only fx, fy, cx, cy non-zero.
+    pub ks: FloatTensor<B>,
+}
 
 /// The rasterizer as a Burn backend operation.
 ///
@@ -49,7 +52,12 @@ pub trait SplatOps: Backend {
         height: u32,
         config: RasterConfig,
     ) -> (FloatTensor<Self>, IntTensor<Self>, IntTensor<Self>) {
-        host::forward::<Self>([means, quats, scales, opacities, colors, viewmats, ks], width, height, &config)
+        host::forward::<Self>(
+            [means, quats, scales, opacities, colors, viewmats, ks],
+            width,
+            height,
+            &config,
+        )
     }
 
     /// Vector-Jacobian product of [`SplatOps::splat_forward`]'s image w.r.t. every input.
@@ -67,7 +75,13 @@ pub trait SplatOps: Backend {
         height: u32,
         config: RasterConfig,
     ) -> SplatGrads<Self> {
-        host::backward::<Self>([means, quats, scales, opacities, colors, viewmats, ks], grad_image, width, height, &config)
+        host::backward::<Self>(
+            [means, quats, scales, opacities, colors, viewmats, ks],
+            grad_image,
+            width,
+            height,
+            &config,
+        )
     }
 }
 

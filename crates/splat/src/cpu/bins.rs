@@ -33,13 +33,28 @@ impl TileBins {
 }
 
 /// Builds the tile lists of one view from its projected Gaussians (`None` = culled).
-pub fn bin_tiles<F: Real>(projected: &[Option<Projected<F>>], tiles_x: u32, tiles_y: u32) -> TileBins {
+pub fn bin_tiles<F: Real>(
+    projected: &[Option<Projected<F>>],
+    tiles_x: u32,
+    tiles_y: u32,
+) -> TileBins {
     let num_tiles = (tiles_x * tiles_y) as usize;
-    let mut order: Vec<u32> = (0..projected.len() as u32).filter(|&i| projected[i as usize].is_some()).collect();
+    let mut order: Vec<u32> = (0..projected.len() as u32)
+        .filter(|&i| projected[i as usize].is_some())
+        .collect();
     // Stable sort on depth keeps index order among equal depths. Depths are finite and
     // >= near > 0, so partial_cmp never fails; Equal is a safe fallback regardless.
-    let depth = |i: u32| projected[i as usize].as_ref().map(|p| p.depth).unwrap_or_else(F::zero);
-    order.sort_by(|&a, &b| depth(a).partial_cmp(&depth(b)).unwrap_or(std::cmp::Ordering::Equal));
+    let depth = |i: u32| {
+        projected[i as usize]
+            .as_ref()
+            .map(|p| p.depth)
+            .unwrap_or_else(F::zero)
+    };
+    order.sort_by(|&a, &b| {
+        depth(a)
+            .partial_cmp(&depth(b))
+            .unwrap_or(std::cmp::Ordering::Equal)
+    });
 
     let mut counts = vec![0usize; num_tiles + 1];
     for &i in &order {
@@ -68,5 +83,9 @@ pub fn bin_tiles<F: Real>(projected: &[Option<Projected<F>>], tiles_x: u32, tile
             }
         }
     }
-    TileBins { tile_start, items, visible: order.len() }
+    TileBins {
+        tile_start,
+        items,
+        visible: order.len(),
+    }
 }

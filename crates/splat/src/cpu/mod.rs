@@ -13,7 +13,9 @@ use crate::config::RasterConfig;
 use crate::real::Real;
 use bins::{bin_tiles, TileBins};
 use project::{project_one, project_one_vjp, Projected, Scene, PROJECTED_GRAD_LANES};
-use raster::{raster_tile_backward, raster_tile_forward, tile_pixels, Splat, Thresholds, OUT_CHANNELS};
+use raster::{
+    raster_tile_backward, raster_tile_forward, tile_pixels, Splat, Thresholds, OUT_CHANNELS,
+};
 use rayon::prelude::*;
 
 /// Gaussians per rayon task in the per-Gaussian passes (large enough to amortise scheduling,
@@ -69,14 +71,27 @@ fn tile_splats<F: Real>(state: &ViewState<F>, t: usize) -> Vec<Splat<F>> {
         .bins
         .tile(t)
         .iter()
-        .filter_map(|&i| state.projected[i as usize].as_ref().map(Splat::from_projected))
+        .filter_map(|&i| {
+            state.projected[i as usize]
+                .as_ref()
+                .map(Splat::from_projected)
+        })
         .collect()
 }
 
 /// Renders `cams.len()` views of the scene (all cameras must share one image size).
-pub fn render_forward<F: Real>(scene: &Scene<F>, cams: &[Camera<F>], cfg: &RasterConfig) -> ForwardOutput<F> {
+pub fn render_forward<F: Real>(
+    scene: &Scene<F>,
+    cams: &[Camera<F>],
+    cfg: &RasterConfig,
+) -> ForwardOutput<F> {
     let n = scene.len();
-    let mut out = ForwardOutput { image: Vec::new(), radii: vec![0; cams.len() * n * 2], visible: Vec::new(), intersections: Vec::new() };
+    let mut out = ForwardOutput {
+        image: Vec::new(),
+        radii: vec![0; cams.len() * n * 2],
+        visible: Vec::new(),
+        intersections: Vec::new(),
+    };
     for (v, cam) in cams.iter().enumerate() {
         let (w, h) = (cam.width as usize, cam.height as usize);
         let mut image = vec![F::zero(); w * h * OUT_CHANNELS];
@@ -96,18 +111,29 @@ pub fn render_forward<F: Real>(scene: &Scene<F>, cams: &[Camera<F>], cfg: &Raste
             .into_par_iter()
             .filter(|&t| !state.bins.tile(t).is_empty())
             .map(|t| {
-                let rect = tile_pixels(t as u32 % tiles_x, t as u32 / tiles_x, cam.width, cam.height);
+                let rect = tile_pixels(
+                    t as u32 % tiles_x,
+                    t as u32 / tiles_x,
+                    cam.width,
+                    cam.height,
+                );
                 let mut buf = Vec::new();
                 raster_tile_forward(&tile_splats(&state, t), rect, &th, &mut buf);
                 (t, buf)
             })
             .collect();
         for (t, buf) in tiles {
-            let (x0, y0, x1, y1) = tile_pixels(t as u32 % tiles_x, t as u32 / tiles_x, cam.width, cam.height);
+            let (x0, y0, x1, y1) = tile_pixels(
+                t as u32 % tiles_x,
+                t as u32 / tiles_x,
+                cam.width,
+                cam.height,
+            );
             let tw = (x1 - x0) as usize;
             for (r, y) in (y0..y1).enumerate() {
                 let dst = (y as usize * w + x0 as usize) * OUT_CHANNELS;
-                image[dst..dst + tw * OUT_CHANNELS].copy_from_slice(&buf[r * tw * OUT_CHANNELS..(r + 1) * tw * OUT_CHANNELS]);
+                image[dst..dst + tw * OUT_CHANNELS]
+                    .copy_from_slice(&buf[r * tw * OUT_CHANNELS..(r + 1) * tw * OUT_CHANNELS]);
             }
         }
         out.image.extend_from_slice(&image);
@@ -117,7 +143,12 @@ pub fn render_forward<F: Real>(scene: &Scene<F>, cams: &[Camera<F>], cfg: &Raste
 
 /// Gradients of `sum(grad_image * image)` where `image` is [`render_forward`]'s output, i.e.
 /// the vector-Jacobian product of the whole renderer, camera included.
-pub fn render_backward<F: Real>(scene: &Scene<F>, cams: &[Camera<F>], cfg: &RasterConfig, grad_image: &[F]) -> BackwardOutput<F> {
+pub fn render_backward<F: Real>(
+    scene: &Scene<F>,
+    cams: &[Camera<F>],
+    cfg: &RasterConfig,
+    grad_image: &[F],
+) -> BackwardOutput<F> {
     let n = scene.len();
     let mut g = BackwardOutput {
         means: vec![F::zero(); n * 3],
@@ -141,12 +172,20 @@ pub fn render_backward<F: Real>(scene: &Scene<F>, cams: &[Camera<F>], cfg: &Rast
             .into_par_iter()
             .filter(|&t| !state.bins.tile(t).is_empty())
             .map(|t| {
-                let rect = tile_pixels(t as u32 % tiles_x, t as u32 / tiles_x, cam.width, cam.height);
+                let rect = tile_pixels(
+                    t as u32 % tiles_x,
+                    t as u32 / tiles_x,
+                    cam.width,
+                    cam.height,
+                );
                 let (x0, y0, x1, y1) = rect;
-                let mut local_grad = Vec::with_capacity(((x1 - x0) * (y1 - y0)) as usize * OUT_CHANNELS);
+                let mut local_grad =
+                    Vec::with_capacity(((x1 - x0) * (y1 - y0)) as usize * OUT_CHANNELS);
                 for y in y0..y1 {
                     let src = (y as usize * w + x0 as usize) * OUT_CHANNELS;
-                    local_grad.extend_from_slice(&view_grad[src..src + (x1 - x0) as usize * OUT_CHANNELS]);
+                    local_grad.extend_from_slice(
+                        &view_grad[src..src + (x1 - x0) as usize * OUT_CHANNELS],
+                    );
                 }
                 let splats = tile_splats(&state, t);
                 let mut lanes = vec![[F::zero(); PROJECTED_GRAD_LANES]; splats.len()];

@@ -3,7 +3,10 @@
 
 use crate::camera::{Camera, CameraGrad, FrustumLimits};
 use crate::config::{RasterConfig, EXTENT_CAP, RADIUS_MAX, TILE_SIZE};
-use crate::math::{conic_vjp, congruence_2x3, covariance, normalize_quat, normalize_quat_vjp, quat_to_rotmat, quat_to_rotmat_vjp, Mat3, Sym2, Vec3};
+use crate::math::{
+    congruence_2x3, conic_vjp, covariance, normalize_quat, normalize_quat_vjp, quat_to_rotmat,
+    quat_to_rotmat_vjp, Mat3, Sym2, Vec3,
+};
 use crate::real::Real;
 
 /// Gaussian parameters as flat row-major slices (activations already applied).
@@ -31,16 +34,33 @@ impl<'a, F: Real> Scene<'a, F> {
     }
 
     fn mean(&self, i: usize) -> Vec3<F> {
-        [self.means[3 * i], self.means[3 * i + 1], self.means[3 * i + 2]]
+        [
+            self.means[3 * i],
+            self.means[3 * i + 1],
+            self.means[3 * i + 2],
+        ]
     }
     fn quat(&self, i: usize) -> [F; 4] {
-        [self.quats[4 * i], self.quats[4 * i + 1], self.quats[4 * i + 2], self.quats[4 * i + 3]]
+        [
+            self.quats[4 * i],
+            self.quats[4 * i + 1],
+            self.quats[4 * i + 2],
+            self.quats[4 * i + 3],
+        ]
     }
     fn scale(&self, i: usize) -> Vec3<F> {
-        [self.scales[3 * i], self.scales[3 * i + 1], self.scales[3 * i + 2]]
+        [
+            self.scales[3 * i],
+            self.scales[3 * i + 1],
+            self.scales[3 * i + 2],
+        ]
     }
     pub fn color(&self, i: usize) -> Vec3<F> {
-        [self.colors[3 * i], self.colors[3 * i + 1], self.colors[3 * i + 2]]
+        [
+            self.colors[3 * i],
+            self.colors[3 * i + 1],
+            self.colors[3 * i + 2],
+        ]
     }
 }
 
@@ -88,7 +108,13 @@ struct Geometry<F> {
     conic: Sym2<F>,
 }
 
-fn geometry<F: Real>(scene: &Scene<F>, i: usize, cam: &Camera<F>, lim: &FrustumLimits<F>, cfg: &RasterConfig) -> Option<Geometry<F>> {
+fn geometry<F: Real>(
+    scene: &Scene<F>,
+    i: usize,
+    cam: &Camera<F>,
+    lim: &FrustumLimits<F>,
+    cfg: &RasterConfig,
+) -> Option<Geometry<F>> {
     let p = scene.mean(i);
     let s = scene.scale(i);
     if !p.iter().chain(s.iter()).all(|v| v.is_finite()) {
@@ -96,7 +122,11 @@ fn geometry<F: Real>(scene: &Scene<F>, i: usize, cam: &Camera<F>, lim: &FrustumL
     }
     let m = {
         let r = cam.rot.mul_vec(&p);
-        [r[0] + cam.trans[0], r[1] + cam.trans[1], r[2] + cam.trans[2]]
+        [
+            r[0] + cam.trans[0],
+            r[1] + cam.trans[1],
+            r[2] + cam.trans[2],
+        ]
     };
     let z = m[2];
     // Cull behind/at the camera plane and beyond far before any division (positive phrasing:
@@ -134,15 +164,37 @@ fn geometry<F: Real>(scene: &Scene<F>, i: usize, cam: &Camera<F>, lim: &FrustumL
     if !conic.is_finite() {
         return None;
     }
-    Some(Geometry { m, q_hat, inv_qnorm, rq, mmat, cov_w, cov_c, j, clamped, t_xy, cov2d, conic })
+    Some(Geometry {
+        m,
+        q_hat,
+        inv_qnorm,
+        rq,
+        mmat,
+        cov_w,
+        cov_c,
+        j,
+        clamped,
+        t_xy,
+        cov2d,
+        conic,
+    })
 }
 
 /// Projects Gaussian `i`; `None` when it is culled (behind the camera, transparent, degenerate,
 /// non-finite or off-screen). Culled Gaussians get radius 0 and no gradient, as in gsplat.
-pub fn project_one<F: Real>(scene: &Scene<F>, i: usize, cam: &Camera<F>, lim: &FrustumLimits<F>, cfg: &RasterConfig) -> Option<Projected<F>> {
+pub fn project_one<F: Real>(
+    scene: &Scene<F>,
+    i: usize,
+    cam: &Camera<F>,
+    lim: &FrustumLimits<F>,
+    cfg: &RasterConfig,
+) -> Option<Projected<F>> {
     let opacity = scene.opacities[i];
     let color = scene.color(i);
-    if !(opacity >= F::lit(cfg.alpha_min) && opacity.is_finite() && color.iter().all(|c| c.is_finite())) {
+    if !(opacity >= F::lit(cfg.alpha_min)
+        && opacity.is_finite()
+        && color.iter().all(|c| c.is_finite()))
+    {
         return None;
     }
     let g = geometry(scene, i, cam, lim, cfg)?;
@@ -155,8 +207,12 @@ pub fn project_one<F: Real>(scene: &Scene<F>, i: usize, cam: &Camera<F>, lim: &F
     // Opacity-aware extent: beyond `sqrt(2 ln(255 o))` sigmas alpha < 1/255 anyway.
     let o = opacity.to_f64_lossy();
     let extent = EXTENT_CAP.min((2.0 * (o / cfg.alpha_min).ln()).max(0.0).sqrt());
-    let rx = (extent * g.cov2d.a.to_f64_lossy().sqrt()).ceil().min(RADIUS_MAX);
-    let ry = (extent * g.cov2d.c.to_f64_lossy().sqrt()).ceil().min(RADIUS_MAX);
+    let rx = (extent * g.cov2d.a.to_f64_lossy().sqrt())
+        .ceil()
+        .min(RADIUS_MAX);
+    let ry = (extent * g.cov2d.c.to_f64_lossy().sqrt())
+        .ceil()
+        .min(RADIUS_MAX);
     if !(rx > 0.0 || ry > 0.0) {
         return None;
     }
@@ -169,7 +225,15 @@ pub fn project_one<F: Real>(scene: &Scene<F>, i: usize, cam: &Camera<F>, lim: &F
     if tiles.count() == 0 {
         return None;
     }
-    Some(Projected { mean2d, conic: g.conic, depth: g.m[2], opacity, color, radius: [rx as i32, ry as i32], tiles })
+    Some(Projected {
+        mean2d,
+        conic: g.conic,
+        depth: g.m[2],
+        opacity,
+        color,
+        radius: [rx as i32, ry as i32],
+        tiles,
+    })
 }
 
 /// gsplat 1.5.3's conservative tile AABB: `floor((mu - r)/16) .. ceil((mu + r)/16)`, clamped.
@@ -202,8 +266,19 @@ pub struct GaussianGrad<F> {
 /// Backward of [`project_one`] given the compositing gradient lanes `g` (see
 /// [`PROJECTED_GRAD_LANES`]). Returns the Gaussian's gradient and its contribution to the
 /// camera's gradient. Must only be called for Gaussians `project_one` kept.
-pub fn project_one_vjp<F: Real>(scene: &Scene<F>, i: usize, cam: &Camera<F>, lim: &FrustumLimits<F>, cfg: &RasterConfig, g: &[F; PROJECTED_GRAD_LANES]) -> (GaussianGrad<F>, CameraGrad<F>) {
-    let mut gg = GaussianGrad { opacity: g[5], color: [g[6], g[7], g[8]], ..Default::default() };
+pub fn project_one_vjp<F: Real>(
+    scene: &Scene<F>,
+    i: usize,
+    cam: &Camera<F>,
+    lim: &FrustumLimits<F>,
+    cfg: &RasterConfig,
+    g: &[F; PROJECTED_GRAD_LANES],
+) -> (GaussianGrad<F>, CameraGrad<F>) {
+    let mut gg = GaussianGrad {
+        opacity: g[5],
+        color: [g[6], g[7], g[8]],
+        ..Default::default()
+    };
     let mut cg = CameraGrad::zero();
     let Some(geo) = geometry(scene, i, cam, lim, cfg) else {
         return (gg, cg);
@@ -248,7 +323,11 @@ pub fn project_one_vjp<F: Real>(scene: &Scene<F>, i: usize, cam: &Camera<F>, lim
     }
 
     // Camera-space mean gradient from mu, J and the depth channel.
-    let mut gm = [cam.fx * rz * gu, cam.fy * rz * gv, -(cam.fx * x * gu + cam.fy * y * gv) * rz2];
+    let mut gm = [
+        cam.fx * rz * gu,
+        cam.fy * rz * gv,
+        -(cam.fx * x * gu + cam.fy * y * gv) * rz2,
+    ];
     cg.fx += x * rz * gu;
     cg.fy += y * rz * gv;
     cg.cx += gu;
@@ -293,7 +372,9 @@ pub fn project_one_vjp<F: Real>(scene: &Scene<F>, i: usize, cam: &Camera<F>, lim
     }
     // Σc = R Σw Rᵀ: dΣw = Rᵀ dΣc R, dR += 2 dΣc R Σw (both symmetric).
     let g_cov_w = rt.mul(&g_cov_c).mul(&cam.rot);
-    cg.rot = cg.rot.add(&g_cov_c.mul(&cam.rot).mul(&geo.cov_w).scale(two));
+    cg.rot = cg
+        .rot
+        .add(&g_cov_c.mul(&cam.rot).mul(&geo.cov_w).scale(two));
     // Σw = M Mᵀ: dM = 2 dΣw M; M = Rq diag(s).
     let g_m = g_cov_w.mul(&geo.mmat).scale(two);
     let s = scene.scale(i);

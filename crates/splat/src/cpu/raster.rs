@@ -77,7 +77,12 @@ impl<F: Real> Thresholds<F> {
 pub fn tile_pixels(tx: u32, ty: u32, width: u32, height: u32) -> (u32, u32, u32, u32) {
     let x0 = tx * TILE_SIZE;
     let y0 = ty * TILE_SIZE;
-    (x0, y0, (x0 + TILE_SIZE).min(width), (y0 + TILE_SIZE).min(height))
+    (
+        x0,
+        y0,
+        (x0 + TILE_SIZE).min(width),
+        (y0 + TILE_SIZE).min(height),
+    )
 }
 
 /// Composites one pixel; returns (R, G, B, D) and the final transmittance.
@@ -105,13 +110,19 @@ fn composite_pixel<F: Real>(splats: &[Splat<F>], px: F, py: F, th: &Thresholds<F
 
 /// Forward pass of one tile: writes `OUT_CHANNELS` values per pixel of the tile, row-major
 /// within the tile rectangle, into `out` (length = tile pixels * OUT_CHANNELS).
-pub fn raster_tile_forward<F: Real>(splats: &[Splat<F>], rect: (u32, u32, u32, u32), th: &Thresholds<F>, out: &mut Vec<F>) {
+pub fn raster_tile_forward<F: Real>(
+    splats: &[Splat<F>],
+    rect: (u32, u32, u32, u32),
+    th: &Thresholds<F>,
+    out: &mut Vec<F>,
+) {
     let (x0, y0, x1, y1) = rect;
     out.clear();
     let half = F::lit(0.5);
     for y in y0..y1 {
         for x in x0..x1 {
-            let (acc, t) = composite_pixel(splats, F::lit(x as f64) + half, F::lit(y as f64) + half, th);
+            let (acc, t) =
+                composite_pixel(splats, F::lit(x as f64) + half, F::lit(y as f64) + half, th);
             out.extend_from_slice(&[acc[0], acc[1], acc[2], acc[3], F::one() - t]);
         }
     }
@@ -135,7 +146,13 @@ struct Contribution<F> {
 /// The forward is replayed to record each contributing splat's alpha and transmittance, then
 /// swept back to front (gsplat's order). Recording T instead of recovering it by division keeps
 /// the result exact near opacity 1, where gsplat's `T / (1 - alpha)` loses precision.
-pub fn raster_tile_backward<F: Real>(splats: &[Splat<F>], rect: (u32, u32, u32, u32), th: &Thresholds<F>, grad_out: &[F], grads: &mut [[F; PROJECTED_GRAD_LANES]]) {
+pub fn raster_tile_backward<F: Real>(
+    splats: &[Splat<F>],
+    rect: (u32, u32, u32, u32),
+    th: &Thresholds<F>,
+    grad_out: &[F],
+    grads: &mut [[F; PROJECTED_GRAD_LANES]],
+) {
     let (x0, y0, x1, y1) = rect;
     let half = F::lit(0.5);
     let mut stack: Vec<Contribution<F>> = Vec::new();
@@ -158,7 +175,14 @@ pub fn raster_tile_backward<F: Real>(splats: &[Splat<F>], rect: (u32, u32, u32, 
                 if next_t <= th.t_min {
                     break;
                 }
-                stack.push(Contribution { k, dx, dy, vis, alpha, t });
+                stack.push(Contribution {
+                    k,
+                    dx,
+                    dy,
+                    vis,
+                    alpha,
+                    t,
+                });
                 t = next_t;
             }
             let t_final = t;

@@ -2,41 +2,82 @@
 //! expected depth and background handled by ordinary tensor ops, and input validation.
 
 use crate::common::{threshold_mask, View};
-use envision4d_splat::testkit::{intrinsics, look_at, random_scene, HostScene, SceneSpec, SplitMix64};
-use envision4d_splat::{render, Cameras, Gaussians, RasterConfig, RenderError};
 use burn::tensor::{DType, Device, Tensor, TensorData};
+use envision4d_splat::testkit::{
+    intrinsics, look_at, random_scene, HostScene, SceneSpec, SplitMix64,
+};
+use envision4d_splat::{render, Cameras, Gaussians, RasterConfig, RenderError};
 
 const W: u32 = 24;
 const H: u32 = 20;
 
 fn t<const D: usize>(v: &[f64], shape: [usize; D], device: &Device, dtype: DType) -> Tensor<D> {
-    Tensor::from_data(TensorData::new(v.to_vec(), shape).convert_dtype(dtype), (device, dtype))
+    Tensor::from_data(
+        TensorData::new(v.to_vec(), shape).convert_dtype(dtype),
+        (device, dtype),
+    )
 }
 
-fn inputs(scene: &HostScene, views: &[View], device: &Device, dtype: DType) -> (Gaussians, Cameras) {
+/// Tensors for a scene; `require_grad` only on an autodiff device.
+fn inputs(
+    scene: &HostScene,
+    views: &[View],
+    device: &Device,
+    dtype: DType,
+) -> (Gaussians, Cameras) {
+    let grad = device.is_autodiff();
+    let g = |x: Tensor<2>| if grad { x.require_grad() } else { x };
+    let g3 = |x: Tensor<3>| if grad { x.require_grad() } else { x };
     let n = scene.len();
     let v = views.len();
     let vm: Vec<f64> = views.iter().flat_map(|(m, _)| m.to_vec()).collect();
     let ks: Vec<f64> = views.iter().flat_map(|(_, k)| k.to_vec()).collect();
     (
         Gaussians {
-            means: t(&scene.means, [n, 3], device, dtype).require_grad(),
-            quats: t(&scene.quats, [n, 4], device, dtype).require_grad(),
-            scales: t(&scene.scales, [n, 3], device, dtype).require_grad(),
-            opacities: t(&scene.opacities, [n], device, dtype).require_grad(),
-            colors: t(&scene.colors, [n, 3], device, dtype).require_grad(),
+            means: g(t(&scene.means, [n, 3], device, dtype)),
+            quats: g(t(&scene.quats, [n, 4], device, dtype)),
+            scales: g(t(&scene.scales, [n, 3], device, dtype)),
+            opacities: {
+                let o = t(&scene.opacities, [n], device, dtype);
+                if grad {
+                    o.require_grad()
+                } else {
+                    o
+                }
+            },
+            colors: g(t(&scene.colors, [n, 3], device, dtype)),
         },
-        Cameras { viewmats: t(&vm, [v, 4, 4], device, dtype).require_grad(), ks: t(&ks, [v, 3, 3], device, dtype).require_grad(), width: W, height: H },
+        Cameras {
+            viewmats: g3(t(&vm, [v, 4, 4], device, dtype)),
+            ks: g3(t(&ks, [v, 3, 3], device, dtype)),
+            width: W,
+            height: H,
+        },
     )
 }
 
 fn views() -> Vec<View> {
-    vec![(look_at([0.0, 0.0, 0.0], [0.0, 0.0, 1.0]), intrinsics(W, H, 25.0)), (look_at([0.2, 0.1, 0.0], [0.0, 0.0, 3.0]), intrinsics(W, H, 22.0))]
+    vec![
+        (
+            look_at([0.0, 0.0, 0.0], [0.0, 0.0, 1.0]),
+            intrinsics(W, H, 25.0),
+        ),
+        (
+            look_at([0.2, 0.1, 0.0], [0.0, 0.0, 3.0]),
+            intrinsics(W, H, 22.0),
+        ),
+    ]
 }
 
 /// Scalar loss over rgb, expected depth and alpha with fixed random weights (zero next to
 /// thresholds so that finite differences are meaningful).
-fn loss(g: &Gaussians, c: &Cameras, cfg: &RasterConfig, w: &[Vec<f64>; 3], dtype: DType) -> Tensor<1> {
+fn loss(
+    g: &Gaussians,
+    c: &Cameras,
+    cfg: &RasterConfig,
+    w: &[Vec<f64>; 3],
+    dtype: DType,
+) -> Tensor<1> {
     let out = render(g, c, cfg).expect("valid render");
     let device = out.rgb.device();
     let v = c.viewmats.dims()[0];
@@ -63,7 +104,10 @@ fn weights(scene: &HostScene, views: &[View], cfg: &RasterConfig) -> [Vec<f64>; 
 }
 
 fn scalar(x: Tensor<1>) -> f64 {
-    x.into_data().convert::<f64>().into_vec::<f64>().unwrap()[0]
+    x.into_data()
+        .convert::<f64>()
+        .try_into_vec::<f64>()
+        .unwrap()[0]
 }
 
 /// Guards the autodiff node and the expected-depth/background tensor ops: float64 gradients
@@ -73,16 +117,46 @@ fn scalar(x: Tensor<1>) -> f64 {
 fn autodiff_matches_finite_differences_through_depth_and_background() {
     let device = Device::flex().autodiff();
     let dtype = DType::F64;
-    let scene = random_scene(6, 17, SceneSpec { scale: (0.1, 0.3), ..Default::default() });
+    let scene = random_scene(
+        6,
+        17,
+        SceneSpec {
+            scale: (0.1, 0.3),
+            ..Default::default()
+        },
+    );
     let views = views();
-    let cfg = RasterConfig { background: Some([0.2, 0.5, 0.9]), ..Default::default() };
+    let cfg = RasterConfig {
+        background: Some([0.2, 0.5, 0.9]),
+        ..Default::default()
+    };
     let w = weights(&scene, &views, &cfg);
     let (g, c) = inputs(&scene, &views, &device, dtype);
     let grads = loss(&g, &c, &cfg, &w, dtype).backward();
-    let grad_of = |x: &Tensor<2>| x.grad(&grads).unwrap().into_data().convert::<f64>().into_vec::<f64>().unwrap();
+    let grad_of = |x: &Tensor<2>| {
+        x.grad(&grads)
+            .unwrap()
+            .into_data()
+            .convert::<f64>()
+            .try_into_vec::<f64>()
+            .unwrap()
+    };
     let g_means = grad_of(&g.means);
-    let g_view = c.viewmats.grad(&grads).unwrap().into_data().convert::<f64>().into_vec::<f64>().unwrap();
-    let g_k = c.ks.grad(&grads).unwrap().into_data().convert::<f64>().into_vec::<f64>().unwrap();
+    let g_view = c
+        .viewmats
+        .grad(&grads)
+        .unwrap()
+        .into_data()
+        .convert::<f64>()
+        .try_into_vec::<f64>()
+        .unwrap();
+    let g_k =
+        c.ks.grad(&grads)
+            .unwrap()
+            .into_data()
+            .convert::<f64>()
+            .try_into_vec::<f64>()
+            .unwrap();
 
     let plain = Device::flex();
     let eval = |s: &HostScene, v: &[View]| {
@@ -91,25 +165,40 @@ fn autodiff_matches_finite_differences_through_depth_and_background() {
     };
     let eps = 1e-6;
     let close = |fd: f64, an: f64, what: String| {
-        assert!((fd - an).abs() <= 1e-4 + 1e-4 * an.abs(), "{what}: finite difference {fd:e} vs autodiff {an:e}");
+        assert!(
+            (fd - an).abs() <= 1e-4 + 1e-4 * an.abs(),
+            "{what}: finite difference {fd:e} vs autodiff {an:e}"
+        );
     };
     for e in 0..scene.means.len() {
         let (mut a, mut b) = (scene.clone(), scene.clone());
         a.means[e] += eps;
         b.means[e] -= eps;
-        close((eval(&a, &views) - eval(&b, &views)) / (2.0 * eps), g_means[e], format!("means[{e}]"));
+        close(
+            (eval(&a, &views) - eval(&b, &views)) / (2.0 * eps),
+            g_means[e],
+            format!("means[{e}]"),
+        );
     }
     for e in [3usize, 7, 11, 0, 5, 16 + 3, 16 + 9] {
         let (mut a, mut b) = (views.clone(), views.clone());
         a[e / 16].0[e % 16] += eps;
         b[e / 16].0[e % 16] -= eps;
-        close((eval(&scene, &a) - eval(&scene, &b)) / (2.0 * eps), g_view[e], format!("viewmats[{e}]"));
+        close(
+            (eval(&scene, &a) - eval(&scene, &b)) / (2.0 * eps),
+            g_view[e],
+            format!("viewmats[{e}]"),
+        );
     }
     for e in [0usize, 2, 4, 5, 9, 11, 13, 14] {
         let (mut a, mut b) = (views.clone(), views.clone());
         a[e / 9].1[e % 9] += eps;
         b[e / 9].1[e % 9] -= eps;
-        close((eval(&scene, &a) - eval(&scene, &b)) / (2.0 * eps), g_k[e], format!("ks[{e}]"));
+        close(
+            (eval(&scene, &a) - eval(&scene, &b)) / (2.0 * eps),
+            g_k[e],
+            format!("ks[{e}]"),
+        );
     }
 }
 
@@ -124,21 +213,67 @@ fn f32_autodiff_reaches_every_input() {
     let out = render(&g, &c, &cfg).unwrap();
     assert_eq!(out.rgb.dims(), [2, H as usize, W as usize, 3]);
     assert_eq!(out.meta.radii.dims(), [2, 50, 2]);
-    let counts = out.meta.counts.clone().into_data().convert::<i64>().into_vec::<i64>().unwrap();
-    assert!(counts[0] > 0 && counts[1] >= counts[0], "visible {} intersections {}", counts[0], counts[1]);
+    let counts = out
+        .meta
+        .counts
+        .clone()
+        .into_data()
+        .convert::<i64>()
+        .try_into_vec::<i64>()
+        .unwrap();
+    assert!(
+        counts[0] > 0 && counts[1] >= counts[0],
+        "visible {} intersections {}",
+        counts[0],
+        counts[1]
+    );
     let grads = (out.rgb.sum() + out.depth.sum() * 0.1).backward();
     let finite_nonzero = |v: Vec<f64>, name: &str| {
-        assert!(v.iter().all(|x| x.is_finite()), "{name} has non-finite gradient");
+        assert!(
+            v.iter().all(|x| x.is_finite()),
+            "{name} has non-finite gradient"
+        );
         assert!(v.iter().any(|x| *x != 0.0), "{name} has no gradient");
     };
-    let read = |x: Tensor<2>| x.into_data().convert::<f64>().into_vec::<f64>().unwrap();
+    let read = |x: Tensor<2>| {
+        x.into_data()
+            .convert::<f64>()
+            .try_into_vec::<f64>()
+            .unwrap()
+    };
     finite_nonzero(read(g.means.grad(&grads).unwrap()), "means");
     finite_nonzero(read(g.quats.grad(&grads).unwrap()), "quats");
     finite_nonzero(read(g.scales.grad(&grads).unwrap()), "scales");
-    finite_nonzero(g.opacities.grad(&grads).unwrap().into_data().convert::<f64>().into_vec().unwrap(), "opacities");
+    finite_nonzero(
+        g.opacities
+            .grad(&grads)
+            .unwrap()
+            .into_data()
+            .convert::<f64>()
+            .try_into_vec()
+            .unwrap(),
+        "opacities",
+    );
     finite_nonzero(read(g.colors.grad(&grads).unwrap()), "colors");
-    finite_nonzero(c.viewmats.grad(&grads).unwrap().into_data().convert::<f64>().into_vec().unwrap(), "viewmats");
-    finite_nonzero(c.ks.grad(&grads).unwrap().into_data().convert::<f64>().into_vec().unwrap(), "ks");
+    finite_nonzero(
+        c.viewmats
+            .grad(&grads)
+            .unwrap()
+            .into_data()
+            .convert::<f64>()
+            .try_into_vec()
+            .unwrap(),
+        "viewmats",
+    );
+    finite_nonzero(
+        c.ks.grad(&grads)
+            .unwrap()
+            .into_data()
+            .convert::<f64>()
+            .try_into_vec()
+            .unwrap(),
+        "ks",
+    );
 }
 
 /// Guards input validation: wrong shapes and degenerate cameras are errors, not panics.
@@ -151,7 +286,10 @@ fn bad_inputs_are_errors() {
 
     let mut bad = g.clone();
     bad.quats = Tensor::zeros([4, 3], &device);
-    assert!(matches!(render(&bad, &c, &cfg), Err(RenderError::Shape { name: "quats", .. })));
+    assert!(matches!(
+        render(&bad, &c, &cfg),
+        Err(RenderError::Shape { name: "quats", .. })
+    ));
 
     let mut bad_cam = views();
     bad_cam[1].1[0] = -5.0;
@@ -162,13 +300,25 @@ fn bad_inputs_are_errors() {
     let mut singular = views();
     singular[0].0 = [0.0; 16];
     let (_, c3) = inputs(&scene, &singular, &device, DType::F32);
-    assert!(render(&g, &c3, &cfg).unwrap_err().to_string().contains("singular"));
+    assert!(render(&g, &c3, &cfg)
+        .unwrap_err()
+        .to_string()
+        .contains("singular"));
 
-    let zero = Cameras { width: 0, ..c.clone() };
-    assert!(render(&g, &zero, &cfg).unwrap_err().to_string().contains("1x1"));
+    let zero = Cameras {
+        width: 0,
+        ..c.clone()
+    };
+    assert!(render(&g, &zero, &cfg)
+        .unwrap_err()
+        .to_string()
+        .contains("1x1"));
 
     let bad_cfg = RasterConfig { near: -1.0, ..cfg };
-    assert!(render(&g, &c, &bad_cfg).unwrap_err().to_string().contains("near"));
+    assert!(render(&g, &c, &bad_cfg)
+        .unwrap_err()
+        .to_string()
+        .contains("near"));
 }
 
 /// Guards the empty scene through Burn (zero-sized tensors): background only, no panic.
@@ -176,10 +326,23 @@ fn bad_inputs_are_errors() {
 fn empty_scene_through_burn() {
     let device = Device::flex();
     let (g, c) = inputs(&HostScene::default(), &views(), &device, DType::F32);
-    let cfg = RasterConfig { background: Some([1.0, 0.0, 0.0]), ..Default::default() };
+    let cfg = RasterConfig {
+        background: Some([1.0, 0.0, 0.0]),
+        ..Default::default()
+    };
     let out = render(&g, &c, &cfg).unwrap();
-    let rgb = out.rgb.into_data().convert::<f32>().into_vec::<f32>().unwrap();
+    let rgb = out
+        .rgb
+        .into_data()
+        .convert::<f32>()
+        .try_into_vec::<f32>()
+        .unwrap();
     assert!(rgb.chunks(3).all(|p| p == [1.0, 0.0, 0.0]));
-    let depth = out.depth.into_data().convert::<f32>().into_vec::<f32>().unwrap();
+    let depth = out
+        .depth
+        .into_data()
+        .convert::<f32>()
+        .try_into_vec::<f32>()
+        .unwrap();
     assert!(depth.iter().all(|d| *d == 0.0));
 }

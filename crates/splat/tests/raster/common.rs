@@ -24,14 +24,31 @@ impl<F: Real> Owned<F> {
         let cams = views
             .iter()
             .enumerate()
-            .map(|(i, (vm, k))| Camera::from_matrices(i, &cast::<F>(vm), &cast::<F>(k), w, h).expect("valid camera"))
+            .map(|(i, (vm, k))| {
+                Camera::from_matrices(i, &cast::<F>(vm), &cast::<F>(k), w, h).expect("valid camera")
+            })
             .collect();
-        Owned { arrays: [cast(&scene.means), cast(&scene.quats), cast(&scene.scales), cast(&scene.opacities), cast(&scene.colors)], cams }
+        Owned {
+            arrays: [
+                cast(&scene.means),
+                cast(&scene.quats),
+                cast(&scene.scales),
+                cast(&scene.opacities),
+                cast(&scene.colors),
+            ],
+            cams,
+        }
     }
 
     pub fn scene(&self) -> Scene<'_, F> {
         let [m, q, s, o, c] = &self.arrays;
-        Scene { means: m, quats: q, scales: s, opacities: o, colors: c }
+        Scene {
+            means: m,
+            quats: q,
+            scales: s,
+            opacities: o,
+            colors: c,
+        }
     }
 
     pub fn forward(&self, cfg: &RasterConfig) -> ForwardOutput<F> {
@@ -43,27 +60,44 @@ impl<F: Real> Owned<F> {
     }
 }
 
-pub fn forward64(scene: &HostScene, views: &[View], w: u32, h: u32, cfg: &RasterConfig) -> ForwardOutput<f64> {
+pub fn forward64(
+    scene: &HostScene,
+    views: &[View],
+    w: u32,
+    h: u32,
+    cfg: &RasterConfig,
+) -> ForwardOutput<f64> {
     Owned::<f64>::new(scene, views, w, h).forward(cfg)
 }
 
 /// Pixels where some Gaussian's alpha is within `margin` of a threshold (the 1/255 cutoff or
 /// the clamp): finite differences are meaningless there because the image jumps.
-pub fn threshold_mask(scene: &HostScene, views: &[View], w: u32, h: u32, cfg: &RasterConfig, margin: f64) -> Vec<bool> {
+pub fn threshold_mask(
+    scene: &HostScene,
+    views: &[View],
+    w: u32,
+    h: u32,
+    cfg: &RasterConfig,
+    margin: f64,
+) -> Vec<bool> {
     let owned = Owned::<f64>::new(scene, views, w, h);
     let sc = owned.scene();
     let mut mask = Vec::new();
     for cam in &owned.cams {
         let lim = cam.frustum_limits();
-        let proj: Vec<_> = (0..sc.len()).filter_map(|i| project_one(&sc, i, cam, &lim, cfg)).collect();
+        let proj: Vec<_> = (0..sc.len())
+            .filter_map(|i| project_one(&sc, i, cam, &lim, cfg))
+            .collect();
         for y in 0..h {
             for x in 0..w {
                 let (px, py) = (x as f64 + 0.5, y as f64 + 0.5);
                 let near = proj.iter().any(|p| {
                     let (dx, dy) = (p.mean2d[0] - px, p.mean2d[1] - py);
-                    let sigma = 0.5 * (p.conic.a * dx * dx + p.conic.c * dy * dy) + p.conic.b * dx * dy;
+                    let sigma =
+                        0.5 * (p.conic.a * dx * dx + p.conic.c * dy * dy) + p.conic.b * dx * dy;
                     let a = p.opacity * (-sigma).exp();
-                    (a - cfg.alpha_min).abs() < margin || (a - cfg.alpha_clamp.max_alpha()).abs() < margin
+                    (a - cfg.alpha_min).abs() < margin
+                        || (a - cfg.alpha_clamp.max_alpha()).abs() < margin
                 });
                 mask.push(near);
             }
@@ -74,7 +108,10 @@ pub fn threshold_mask(scene: &HostScene, views: &[View], w: u32, h: u32, cfg: &R
 
 pub fn max_abs_diff(a: &[f64], b: &[f64]) -> f64 {
     assert_eq!(a.len(), b.len());
-    a.iter().zip(b).map(|(x, y)| (x - y).abs()).fold(0.0, f64::max)
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| (x - y).abs())
+        .fold(0.0, f64::max)
 }
 
 pub fn to64<F: Real>(v: &[F]) -> Vec<f64> {

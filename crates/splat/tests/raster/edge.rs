@@ -20,7 +20,9 @@ fn brute_force(scene: &HostScene, views: &[View], w: u32, h: u32, cfg: &RasterCo
     let mut out = Vec::new();
     for cam in &owned.cams {
         let lim = cam.frustum_limits();
-        let mut proj: Vec<_> = (0..sc.len()).filter_map(|i| project_one(&sc, i, cam, &lim, cfg)).collect();
+        let mut proj: Vec<_> = (0..sc.len())
+            .filter_map(|i| project_one(&sc, i, cam, &lim, cfg))
+            .collect();
         proj.sort_by(|a, b| a.depth.partial_cmp(&b.depth).unwrap());
         for y in 0..h {
             for x in 0..w {
@@ -29,7 +31,8 @@ fn brute_force(scene: &HostScene, views: &[View], w: u32, h: u32, cfg: &RasterCo
                 let mut acc = [0.0; 4];
                 for p in &proj {
                     let (dx, dy) = (p.mean2d[0] - px, p.mean2d[1] - py);
-                    let sigma = 0.5 * (p.conic.a * dx * dx + p.conic.c * dy * dy) + p.conic.b * dx * dy;
+                    let sigma =
+                        0.5 * (p.conic.a * dx * dx + p.conic.c * dy * dy) + p.conic.b * dx * dy;
                     let alpha = cfg.alpha_clamp.max_alpha().min(p.opacity * (-sigma).exp());
                     if sigma < 0.0 || alpha < cfg.alpha_min {
                         continue;
@@ -53,7 +56,12 @@ fn brute_force(scene: &HostScene, views: &[View], w: u32, h: u32, cfg: &RasterCo
 fn assert_close(a: &[f64], b: &[f64], tol: f64, what: &str) {
     assert_eq!(a.len(), b.len(), "{what}: lengths");
     for (i, (x, y)) in a.iter().zip(b).enumerate() {
-        assert!((x - y).abs() <= tol, "{what}: value {i} (pixel {}, channel {}): {x} vs {y}", i / OUT_CHANNELS, i % OUT_CHANNELS);
+        assert!(
+            (x - y).abs() <= tol,
+            "{what}: value {i} (pixel {}, channel {}): {x} vs {y}",
+            i / OUT_CHANNELS,
+            i % OUT_CHANNELS
+        );
     }
 }
 
@@ -70,15 +78,16 @@ fn empty_scene_renders_nothing() {
 }
 
 /// Guards the projection and compositing formulas against the closed form of one isotropic
-/// Gaussian: alpha(p) = o exp(-|p - mu|² / (2 (f² s² / z² + eps2d))).
+/// Gaussian on the optical axis (where the EWA Jacobian is isotropic):
+/// alpha(p) = o exp(-|p - mu|² / (2 (f² s² / z² + eps2d))).
 #[test]
 fn single_gaussian_matches_closed_form() {
     let (w, h, f, s, z, o) = (33u32, 21u32, 30.0, 0.2, 2.0, 0.7);
     let mut scene = HostScene::default();
-    scene.push([0.1, -0.05, z], ID, [s, s, s], o, [0.2, 0.4, 0.6]);
+    scene.push([0.0, 0.0, z], ID, [s, s, s], o, [0.2, 0.4, 0.6]);
     let cfg = RasterConfig::default();
     let out = forward64(&scene, &view(w, h, f), w, h, &cfg);
-    let (mu_x, mu_y) = (f * 0.1 / z + w as f64 / 2.0, f * -0.05 / z + h as f64 / 2.0);
+    let (mu_x, mu_y) = (w as f64 / 2.0, h as f64 / 2.0);
     let var = f * f * s * s / (z * z) + cfg.eps2d;
     for y in 0..h {
         for x in 0..w {
@@ -86,9 +95,18 @@ fn single_gaussian_matches_closed_form() {
             let a = o * (-0.5 * d2 / var).exp();
             let expect = if a < cfg.alpha_min { 0.0 } else { a };
             let px = ((y * w + x) as usize) * OUT_CHANNELS;
-            assert!((out.image[px + 4] - expect).abs() < 1e-12, "alpha at ({x},{y})");
-            assert!((out.image[px] - 0.2 * expect).abs() < 1e-12, "red at ({x},{y})");
-            assert!((out.image[px + 3] - z * expect).abs() < 1e-12, "depth at ({x},{y})");
+            assert!(
+                (out.image[px + 4] - expect).abs() < 1e-12,
+                "alpha at ({x},{y})"
+            );
+            assert!(
+                (out.image[px] - 0.2 * expect).abs() < 1e-12,
+                "red at ({x},{y})"
+            );
+            assert!(
+                (out.image[px + 3] - z * expect).abs() < 1e-12,
+                "depth at ({x},{y})"
+            );
         }
     }
 }
@@ -98,7 +116,14 @@ fn single_gaussian_matches_closed_form() {
 #[test]
 fn camera_plane_and_near_plane_culling() {
     let cfg = RasterConfig::default();
-    for (z, kept) in [(-1.0, false), (0.0, false), (-0.0, false), (0.0099, false), (0.01, true), (1e11, false)] {
+    for (z, kept) in [
+        (-1.0, false),
+        (0.0, false),
+        (-0.0, false),
+        (0.0099, false),
+        (0.01, true),
+        (1e11, false),
+    ] {
         let mut scene = HostScene::default();
         scene.push([0.0, 0.0, z], ID, [1e-3, 1e-3, 1e-3], 0.9, [1.0, 1.0, 1.0]);
         let out = forward64(&scene, &view(8, 8, 8.0), 8, 8, &cfg);
@@ -119,7 +144,13 @@ fn extreme_scales() {
         assert!(out.image.iter().all(|v| v.is_finite()), "scale {s}");
     }
     let mut scene = HostScene::default();
-    scene.push([0.0, 0.0, 2.0], ID, [1e-30, 1e-30, 1e-30], 0.9, [1.0, 1.0, 1.0]);
+    scene.push(
+        [0.0, 0.0, 2.0],
+        ID,
+        [1e-30, 1e-30, 1e-30],
+        0.9,
+        [1.0, 1.0, 1.0],
+    );
     let out = forward64(&scene, &view(16, 16, 16.0), 16, 16, &cfg);
     let centre = (8 * 16 + 8) * OUT_CHANNELS + 4;
     assert!(out.image[centre] > 0.1 && out.image.iter().all(|v| v.is_finite()));
@@ -136,11 +167,26 @@ fn extreme_scales() {
 fn opacity_limits() {
     let cfg = RasterConfig::default();
     let mut scene = HostScene::default();
-    scene.push([0.0, 0.0, 2.0], ID, [0.5, 0.5, 0.5], 1.0 / 255.0, [1.0, 1.0, 1.0]);
-    assert_eq!(forward64(&scene, &view(8, 8, 8.0), 8, 8, &cfg).visible[0], 0);
+    scene.push(
+        [0.0, 0.0, 2.0],
+        ID,
+        [0.5, 0.5, 0.5],
+        1.0 / 255.0,
+        [1.0, 1.0, 1.0],
+    );
+    assert_eq!(
+        forward64(&scene, &view(8, 8, 8.0), 8, 8, &cfg).visible[0],
+        0
+    );
 
     let mut scene = HostScene::default();
-    scene.push([0.0, 0.0, 2.0], ID, [0.01, 0.01, 0.01], 1.0, [1.0, 0.5, 0.25]);
+    scene.push(
+        [0.0, 0.0, 2.0],
+        ID,
+        [0.01, 0.01, 0.01],
+        1.0,
+        [1.0, 0.5, 0.25],
+    );
     let o = Owned::<f64>::new(&scene, &view(9, 9, 9.0), 9, 9);
     let out = o.forward(&cfg);
     // The centre of a 9x9 image is pixel (4, 4) at (4.5, 4.5) = the projected mean.
@@ -150,7 +196,10 @@ fn opacity_limits() {
     grad[c + 4] = 1.0;
     grad[c] = 1.0;
     let g = o.backward(&cfg, &grad);
-    assert_eq!(g.opacities[0], 0.0, "clamped alpha must not pass gradient to opacity");
+    assert_eq!(
+        g.opacities[0], 0.0,
+        "clamped alpha must not pass gradient to opacity"
+    );
     assert!(g.means.iter().all(|v| *v == 0.0));
     assert!((g.colors[0] - 0.999).abs() < 1e-12);
 }
@@ -164,14 +213,32 @@ fn poisoned_gaussians_are_culled_without_side_effects() {
     let mut poisoned = clean.clone();
     let nan = f64::NAN;
     let inf = f64::INFINITY;
-    poisoned.push([0.0, 0.0, 2.0], [0.0, 0.0, 0.0, 0.0], [0.1; 3], 0.9, [1.0; 3]);
-    poisoned.push([0.0, 0.0, 2.0], [nan, 0.0, 0.0, 1.0], [0.1; 3], 0.9, [1.0; 3]);
+    poisoned.push(
+        [0.0, 0.0, 2.0],
+        [0.0, 0.0, 0.0, 0.0],
+        [0.1; 3],
+        0.9,
+        [1.0; 3],
+    );
+    poisoned.push(
+        [0.0, 0.0, 2.0],
+        [nan, 0.0, 0.0, 1.0],
+        [0.1; 3],
+        0.9,
+        [1.0; 3],
+    );
     poisoned.push([nan, 0.0, 2.0], ID, [0.1; 3], 0.9, [1.0; 3]);
     poisoned.push([0.0, 0.0, inf], ID, [0.1; 3], 0.9, [1.0; 3]);
     poisoned.push([0.0, 0.0, 2.0], ID, [inf, 0.1, 0.1], 0.9, [1.0; 3]);
     poisoned.push([0.0, 0.0, 2.0], ID, [0.1; 3], nan, [1.0; 3]);
     poisoned.push([0.0, 0.0, 2.0], ID, [0.1; 3], 0.9, [nan, 0.0, 0.0]);
-    poisoned.push([0.0, 0.0, 2.0], [1e-30, 0.0, 0.0, 0.0], [0.1; 3], 0.9, [1.0; 3]);
+    poisoned.push(
+        [0.0, 0.0, 2.0],
+        [1e-30, 0.0, 0.0, 0.0],
+        [0.1; 3],
+        0.9,
+        [1.0; 3],
+    );
     let views = view(48, 40, 40.0);
     let a = Owned::<f32>::new(&clean, &views, 48, 40).forward(&cfg);
     let ob = Owned::<f32>::new(&poisoned, &views, 48, 40);
@@ -179,8 +246,18 @@ fn poisoned_gaussians_are_culled_without_side_effects() {
     assert_eq!(a.image, b.image);
     assert_eq!(b.visible, a.visible);
     let g = ob.backward(&cfg, &vec![1.0; b.image.len()]);
-    assert!(g.means.iter().chain(&g.quats).chain(&g.scales).chain(&g.viewmats).chain(&g.ks).all(|v| v.is_finite()));
-    assert!(g.means[3 * 40..].iter().all(|v| *v == 0.0), "culled Gaussians get zero gradient");
+    assert!(g
+        .means
+        .iter()
+        .chain(&g.quats)
+        .chain(&g.scales)
+        .chain(&g.viewmats)
+        .chain(&g.ks)
+        .all(|v| v.is_finite()));
+    assert!(
+        g.means[3 * 40..].iter().all(|v| *v == 0.0),
+        "culled Gaussians get zero gradient"
+    );
 }
 
 /// Guards the exclusive transmittance stop: in a stack of 30 opaque Gaussians only the front
@@ -190,7 +267,13 @@ fn stack_of_thirty_opaque_gaussians() {
     let cfg = RasterConfig::default();
     let mut scene = HostScene::default();
     for i in 0..30 {
-        scene.push([0.0, 0.0, 2.0 + 0.1 * i as f64], ID, [0.5; 3], 0.99, [i as f64 / 30.0, 0.5, 0.5]);
+        scene.push(
+            [0.0, 0.0, 2.0 + 0.1 * i as f64],
+            ID,
+            [0.5; 3],
+            0.99,
+            [i as f64 / 30.0, 0.5, 0.5],
+        );
     }
     let o = Owned::<f64>::new(&scene, &view(8, 8, 4.0), 8, 8);
     let out = o.forward(&cfg);
@@ -209,7 +292,12 @@ fn stack_of_thirty_opaque_gaussians() {
     }
     assert!(g.colors[3 * 4] > 0.0, "the fifth layer is still composited");
     assert!(g.colors[0] > 0.0);
-    assert_close(&out.image, &brute_force(&scene, &view(8, 8, 4.0), 8, 8, &cfg), 1e-12, "stack");
+    assert_close(
+        &out.image,
+        &brute_force(&scene, &view(8, 8, 4.0), 8, 8, &cfg),
+        1e-12,
+        "stack",
+    );
 }
 
 /// Guards tie-breaking at equal depths: Gaussian index order decides, deterministically.
@@ -221,7 +309,10 @@ fn equal_depths_composite_in_index_order() {
     ab.push([0.0, 0.0, 2.0], ID, [0.3; 3], 0.8, [0.0, 0.0, 1.0]);
     let out = forward64(&ab, &view(8, 8, 8.0), 8, 8, &cfg);
     let c = (4 * 8 + 4) * OUT_CHANNELS;
-    assert!(out.image[c] > out.image[c + 2], "first index in front: red dominates");
+    assert!(
+        out.image[c] > out.image[c + 2],
+        "first index in front: red dominates"
+    );
     let mut ba = HostScene::default();
     ba.push([0.0, 0.0, 2.0], ID, [0.3; 3], 0.8, [0.0, 0.0, 1.0]);
     ba.push([0.0, 0.0, 2.0], ID, [0.3; 3], 0.8, [1.0, 0.0, 0.0]);
@@ -235,10 +326,22 @@ fn equal_depths_composite_in_index_order() {
 fn odd_image_sizes_match_untiled_reference() {
     let cfg = RasterConfig::default();
     for (w, h) in [(1u32, 1u32), (17, 1), (1, 17), (33, 19), (16, 16)] {
-        let scene = random_scene(60, w as u64 * 100 + h as u64, SceneSpec { scale: (0.05, 0.5), ..Default::default() });
+        let scene = random_scene(
+            60,
+            w as u64 * 100 + h as u64,
+            SceneSpec {
+                scale: (0.05, 0.5),
+                ..Default::default()
+            },
+        );
         let views = vec![(identity_view(), intrinsics(w, h, 0.8 * w.max(h) as f64))];
         let out = forward64(&scene, &views, w, h, &cfg);
-        assert_close(&out.image, &brute_force(&scene, &views, w, h, &cfg), 1e-12, &format!("{w}x{h}"));
+        assert_close(
+            &out.image,
+            &brute_force(&scene, &views, w, h, &cfg),
+            1e-12,
+            &format!("{w}x{h}"),
+        );
     }
 }
 

@@ -9,8 +9,14 @@ const H: u32 = 64;
 
 fn views() -> Vec<View> {
     vec![
-        (look_at([0.0, 0.0, 0.0], [0.0, 0.0, 1.0]), intrinsics(W, H, 80.0)),
-        (look_at([0.3, 0.1, -0.2], [0.0, 0.0, 3.0]), intrinsics(W, H, 70.0)),
+        (
+            look_at([0.0, 0.0, 0.0], [0.0, 0.0, 1.0]),
+            intrinsics(W, H, 80.0),
+        ),
+        (
+            look_at([0.3, 0.1, -0.2], [0.0, 0.0, 3.0]),
+            intrinsics(W, H, 70.0),
+        ),
     ]
 }
 
@@ -18,13 +24,23 @@ fn views() -> Vec<View> {
 /// channel) by comparing image and gradients with the f64 oracle on a busy scene.
 #[test]
 fn f32_matches_f64_oracle() {
-    let scene = random_scene(400, 3, SceneSpec { scale: (0.02, 0.15), ..Default::default() });
+    let scene = random_scene(
+        400,
+        3,
+        SceneSpec {
+            scale: (0.02, 0.15),
+            ..Default::default()
+        },
+    );
     let cfg = RasterConfig::default();
     let o64 = Owned::<f64>::new(&scene, &views(), W, H);
     let o32 = Owned::<f32>::new(&scene, &views(), W, H);
     let f64out = o64.forward(&cfg);
     let f32out = o32.forward(&cfg);
-    assert_eq!(f64out.radii, f32out.radii, "culling/radii must agree away from thresholds");
+    assert_eq!(
+        f64out.radii, f32out.radii,
+        "culling/radii must agree away from thresholds"
+    );
     assert_eq!(f64out.intersections, f32out.intersections);
     // Colour and alpha channels are O(1); the depth channel is O(z) so compare it relatively.
     let img32 = to64(&f32out.image);
@@ -38,10 +54,15 @@ fn f32_matches_f64_oracle() {
         }
     }
     assert!(worst_rgba < 2e-5, "rgb/alpha differ by {worst_rgba:e}");
-    assert!(worst_depth < 2e-5, "depth channel differs by {worst_depth:e} (relative)");
+    assert!(
+        worst_depth < 2e-5,
+        "depth channel differs by {worst_depth:e} (relative)"
+    );
 
     let mut rng = SplitMix64::new(1);
-    let grad: Vec<f64> = (0..f64out.image.len()).map(|_| rng.range(-1.0, 1.0)).collect();
+    let grad: Vec<f64> = (0..f64out.image.len())
+        .map(|_| rng.range(-1.0, 1.0))
+        .collect();
     let grad32: Vec<f32> = grad.iter().map(|v| *v as f32).collect();
     let g64 = o64.backward(&cfg, &grad);
     let g32 = o32.backward(&cfg, &grad32);
@@ -57,7 +78,10 @@ fn f32_matches_f64_oracle() {
     for (name, a, b) in pairs {
         let scale = a.iter().fold(0.0f64, |m, v| m.max(v.abs())).max(1e-3);
         let err = max_abs_diff(a, &b) / scale;
-        assert!(err < 5e-4, "{name}: f32 gradient differs from f64 by {err:e} of its largest entry");
+        assert!(
+            err < 5e-4,
+            "{name}: f32 gradient differs from f64 by {err:e} of its largest entry"
+        );
     }
 }
 

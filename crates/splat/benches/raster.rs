@@ -1,0 +1,197 @@
+//! Rasterizer benchmark (not a test): forward and forward+backward at 350x518 with 10k,
+//! 100k and 362k Gaussians (two frames of per-pixel Gaussians, as Envision4D renders them).
+//!
+//! `cargo bench -p envision4d-splat --bench raster [-- --wgpu] [-- --quick]`
+//! Prints ms per view and Gaussian-tile pairs per second; results go to docs/PERFORMANCE.md.
+
+use burn::tensor::{Device, DeviceKind, Tensor, TensorData};
+use envision4d_splat::testkit::{look_at, HostScene, SplitMix64};
+use envision4d_splat::{render, Cameras, Gaussians, RasterConfig};
+use std::time::{Duration, Instant};
+
+const W: u32 = 518;
+const H: u32 = 350;
+const FOCAL: f64 = 300.0;
+
+/// Per-pixel Gaussians of a street-like depth map (ground plane, two facades, far backdrop),
+/// back-projected from `frames` nearby cameras: what the Gaussian head produces.
+fn street_scene(frames: usize, seed: u64) -> HostScene {
+    let mut rng = SplitMix64::new(seed);
+    let mut s = HostScene::default();
+    for f in 0..frames {
+        let cam_z = f as f64 * 0.8;
+        for y in 0..H {
+            for x in 0..W {
+                let u = (x as f64 + 0.5 - W as f64 / 2.0) / FOCAL;
+                let v = (y as f64 + 0.5 - H as f64 / 2.0) / FOCAL;
+                // Camera 1.5 m above the road; facades at x = ±6 m; backdrop at 80 m.
+                let mut depth: f64 = 80.0;
+                if v > 1e-3 {
+                    depth = depth.min(1.5 / v);
+                }
+                if u.abs() > 1e-3 {
+                    depth = depth.min(6.0 / u.abs());
+                }
+                let z = depth * (1.0 + 0.01 * rng.range(-1.0, 1.0));
+                let mean = [u * z, v * z, z + cam_z];
+                let pix = z / FOCAL;
+                let scale = [
+                    pix * rng.range(0.5, 1.5),
+                    pix * rng.range(0.5, 1.5),
+                    pix * rng.range(0.2, 1.0),
+                ];
+                let quat = [
+                    1.0,
+                    rng.range(-0.2, 0.2),
+                    rng.range(-0.2, 0.2),
+                    rng.range(-0.2, 0.2),
+                ];
+                let color = [rng.unit(), rng.unit(), rng.unit()];
+                s.push(mean, quat, scale, rng.range(0.3, 0.95), color);
+            }
+        }
+    }
+    s
+}
+
+fn subsample(s: &HostScene, n: usize, seed: u64) -> HostScene {
+    let mut rng = SplitMix64::new(seed);
+    let mut idx: Vec<usize> = (0..s.len()).collect();
+    for i in (1..idx.len()).rev() {
+        idx.swap(i, (rng.next_u64() % (i as u64 + 1)) as usize);
+    }
+    let mut out = HostScene::default();
+    for &i in idx.iter().take(n) {
+        let g = |v: &Vec<f64>, k: usize| -> Vec<f64> { v[k * i..k * i + k].to_vec() };
+        let (m, q, sc, c) = (
+            g(&s.means, 3),
+            g(&s.quats, 4),
+            g(&s.scales, 3),
+            g(&s.colors, 3),
+        );
+        out.push(
+            [m[0], m[1], m[2]],
+            [q[0], q[1], q[2], q[3]],
+            [sc[0], sc[1], sc[2]],
+            s.opacities[i],
+            [c[0], c[1], c[2]],
+        );
+    }
+    out
+}
+
+fn tensors(s: &HostScene, device: &Device, grad: bool) -> (Gaussians, Cameras) {
+    let n = s.len();
+    let [m, q, sc, o, c] = s.to_f32();
+    let t2 = |v: Vec<f32>, k: usize| {
+        let t = Tensor::<2>::from_data(TensorData::new(v, [n, k]), device);
+        if grad {
+            t.require_grad()
+        } else {
+            t
+        }
+    };
+    let vm: Vec<f32> = look_at([0.0, 0.0, 0.4], [0.0, 0.0, 10.0])
+        .iter()
+        .map(|v| *v as f32)
+        .collect();
+    let k = [
+        FOCAL as f32,
+        0.0,
+        W as f32 / 2.0,
+        0.0,
+        FOCAL as f32,
+        H as f32 / 2.0,
+        0.0,
+        0.0,
+        1.0,
+    ];
+    let mut op = Tensor::<1>::from_data(TensorData::new(o, [n]), device);
+    if grad {
+        op = op.require_grad();
+    }
+    (
+        Gaussians {
+            means: t2(m, 3),
+            quats: t2(q, 4),
+            scales: t2(sc, 3),
+            opacities: op,
+            colors: t2(c, 3),
+        },
+        Cameras {
+            viewmats: Tensor::from_data(TensorData::new(vm, [1, 4, 4]), device),
+            ks: Tensor::from_data(TensorData::new(k.to_vec(), [1, 3, 3]), device),
+            width: W,
+            height: H,
+        },
+    )
+}
+
+fn time<T>(reps: usize, mut f: impl FnMut() -> T) -> Duration {
+    f(); // warm-up (autotune, kernel compilation, allocations)
+    (0..reps)
+        .map(|_| {
+            let t = Instant::now();
+            f();
+            t.elapsed()
+        })
+        .min()
+        .unwrap()
+}
+
+fn main() {
+    let args: Vec<String> = std::env::args().collect();
+    let quick = args.iter().any(|a| a == "--quick");
+    let mut devices = vec![("cpu (burn-flex + rayon)", Device::flex())];
+    if args.iter().any(|a| a == "--wgpu") {
+        devices.push(("wgpu", Device::wgpu(DeviceKind::DefaultDevice)));
+    }
+    let reps = if quick { 1 } else { 3 };
+    let full = street_scene(2, 7);
+    let cfg = RasterConfig::default();
+    println!(
+        "machine: {} logical cores; image {W}x{H}; min of {reps} runs after 1 warm-up",
+        std::thread::available_parallelism()
+            .map(|n| n.get())
+            .unwrap_or(1)
+    );
+    println!("| backend | Gaussians | visible | tile pairs | forward ms/view | fwd+bwd ms/view | fwd pairs/s | fwd+bwd pairs/s |");
+    println!("|---|---|---|---|---|---|---|---|");
+    for (name, device) in devices {
+        for n in [10_000usize, 100_000, full.len()] {
+            let scene = if n == full.len() {
+                full.clone()
+            } else {
+                subsample(&full, n, 3)
+            };
+            let (g, c) = tensors(&scene, &device, false);
+            let out = render(&g, &c, &cfg).unwrap();
+            let counts = out
+                .meta
+                .counts
+                .into_data()
+                .convert::<i64>()
+                .try_into_vec::<i64>()
+                .unwrap();
+            // Upper bound of Gaussian-pixel evaluations: every tile pair visits 256 pixels.
+            let pairs = counts[1] as f64 * 256.0;
+            let fwd = time(reps, || render(&g, &c, &cfg).unwrap().rgb.into_data());
+            let ad = device.clone().autodiff();
+            let (ga, ca) = tensors(&scene, &ad, true);
+            let fb = time(reps, || {
+                let out = render(&ga, &ca, &cfg).unwrap();
+                let grads = (out.rgb.sum() + out.depth.sum() * 0.01).backward();
+                ga.means.grad(&grads).unwrap().into_data()
+            });
+            println!(
+                "| {name} | {n} | {} | {} | {:.1} | {:.1} | {:.2e} | {:.2e} |",
+                counts[0],
+                counts[1],
+                fwd.as_secs_f64() * 1e3,
+                fb.as_secs_f64() * 1e3,
+                pairs / fwd.as_secs_f64(),
+                pairs / fb.as_secs_f64()
+            );
+        }
+    }
+}
