@@ -66,7 +66,7 @@ fn prepare_view<F: Real>(scene: &Scene<F>, cam: &Camera<F>, cfg: &RasterConfig) 
     ViewState { projected, bins }
 }
 
-fn tile_splats<F: Real>(state: &ViewState<F>, t: usize) -> Vec<Splat<F>> {
+fn tile_splats<F: Real>(state: &ViewState<F>, t: usize, cfg: &RasterConfig) -> Vec<Splat<F>> {
     state
         .bins
         .tile(t)
@@ -74,7 +74,7 @@ fn tile_splats<F: Real>(state: &ViewState<F>, t: usize) -> Vec<Splat<F>> {
         .filter_map(|&i| {
             state.projected[i as usize]
                 .as_ref()
-                .map(Splat::from_projected)
+                .map(|p| Splat::from_projected(p, cfg.alpha_min))
         })
         .collect()
 }
@@ -118,7 +118,7 @@ pub fn render_forward<F: Real>(
                     cam.height,
                 );
                 let mut buf = Vec::new();
-                raster_tile_forward(&tile_splats(&state, t), rect, &th, &mut buf);
+                raster_tile_forward(&tile_splats(&state, t, cfg), rect, &th, &mut buf);
                 (t, buf)
             })
             .collect();
@@ -187,7 +187,7 @@ pub fn render_backward<F: Real>(
                         &view_grad[src..src + (x1 - x0) as usize * OUT_CHANNELS],
                     );
                 }
-                let splats = tile_splats(&state, t);
+                let splats = tile_splats(&state, t, cfg);
                 let mut lanes = vec![[F::zero(); PROJECTED_GRAD_LANES]; splats.len()];
                 raster_tile_backward(&splats, rect, &th, &local_grad, &mut lanes);
                 (t, lanes)
