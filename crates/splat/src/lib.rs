@@ -15,6 +15,7 @@ pub mod camera;
 pub mod camera_json;
 pub mod config;
 pub mod cpu;
+pub mod kernels;
 pub mod math;
 pub mod ply;
 pub mod real;

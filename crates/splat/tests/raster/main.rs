@@ -6,3 +6,4 @@ mod common;
 mod edge;
 mod gradients;
 mod oracle;
+mod wgpu_parity;

@@ -1,0 +1,413 @@
+//! Host side of the CubeCL rasterizer: camera records, kernel launches, host binning and the
+//! reductions, for f32 tensors of any CubeCL runtime.
+//!
+//! Every launch is skipped when its work is empty (N == 0, no visible Gaussian, no tile
+//! intersection): CubeCL does not support zero-size dispatches, and the zero-filled outputs
+//! are already the right answer.
+
+use super::math::CAM_LANES;
+use super::project_backward::{project_backward, CAM_GRAD_LANES};
+use super::project_forward::{project_forward, META_LANES, RECORD_LANES};
+use super::rasterize_backward::{rasterize_backward, CasAdd, NativeAdd};
+use super::rasterize_forward::{rasterize_forward, OUT_CHANNELS, TILE};
+use crate::backend::SplatGrads;
+use crate::camera::{Camera, CameraGrad};
+use crate::config::RasterConfig;
+use crate::cpu::bins::{bin_tiles, TileBins};
+use crate::cpu::project::{Projected, TileRect};
+use crate::math::{Mat3, Sym2};
+use burn::backend::ops::{FloatTensorOps, IntTensorOps};
+use burn::backend::tensor::{FloatTensor, IntTensor};
+use burn::backend::TensorMetadata;
+use burn::tensor::{read_sync, DType, Shape, TensorData};
+use burn_cubecl::kernel::into_contiguous;
+use burn_cubecl::ops::numeric::{empty_device_dtype, zeros_client};
+use burn_cubecl::tensor::CubeTensor;
+use burn_cubecl::CubeBackend;
+use cubecl::features::AtomicUsage;
+use cubecl::ir::{ElemType, FloatKind, Type};
+use cubecl::{calculate_cube_count_elemwise, CubeCount, CubeDim};
+use std::sync::atomic::{AtomicBool, Ordering};
+
+/// Forces the compare-and-swap gradient accumulation even where float atomics exist (tests).
+static FORCE_CAS: AtomicBool = AtomicBool::new(false);
+
+/// Makes later backward passes use (or stop using) the CAS fallback for float atomics.
+pub fn force_cas_atomics(on: bool) {
+    FORCE_CAS.store(on, Ordering::SeqCst);
+}
+
+fn read_f32(t: CubeTensor) -> Vec<f32> {
+    let data = read_sync(CubeBackend::float_into_data(t))
+        .unwrap_or_else(|e| panic!("splat: device readback failed: {e:?}"));
+    data.convert::<f32>()
+        .try_into_vec::<f32>()
+        .unwrap_or_else(|e| panic!("splat: tensor conversion failed: {e:?}"))
+}
+
+/// A flat (1-D, contiguous) view of `t`, so kernels may index it with `row * lanes + k`.
+fn flat(t: CubeTensor) -> CubeTensor {
+    let n = t.shape().num_elements();
+    CubeBackend::float_reshape(into_contiguous(t), Shape::new([n]))
+}
+
+fn upload_f32(like: &CubeTensor, v: Vec<f32>) -> CubeTensor {
+    let len = v.len();
+    CubeBackend::float_from_data(TensorData::new(v, [len]), &like.device)
+}
+
+fn upload_u32(like: &CubeTensor, v: &[u32]) -> CubeTensor {
+    let bytes: Vec<u8> = v.iter().flat_map(|x| x.to_le_bytes()).collect();
+    let handle = like.client.create_from_slice(&bytes);
+    CubeTensor::new_contiguous(
+        like.client.clone(),
+        like.device.clone(),
+        Shape::new([v.len()]),
+        handle,
+        DType::U32,
+    )
+}
+
+fn zeros(like: &CubeTensor, len: usize) -> CubeTensor {
+    zeros_client(
+        like.client.clone(),
+        like.device.clone(),
+        Shape::new([len]),
+        DType::F32,
+    )
+}
+
+/// The `CAM_LANES` record of one camera (limits computed on the host with the CPU's code).
+fn camera_record(cam: &Camera<f32>) -> Vec<f32> {
+    let r = &cam.rot.0;
+    let lim = cam.frustum_limits();
+    let mut v = Vec::with_capacity(CAM_LANES);
+    v.extend(r.iter().flatten().copied());
+    v.extend_from_slice(&cam.trans);
+    v.extend_from_slice(&[
+        cam.fx, cam.fy, cam.cx, cam.cy, lim.x_neg, lim.x_pos, lim.y_neg, lim.y_pos,
+    ]);
+    v
+}
+
+/// The seven flat f32 inputs, the cameras and sizes of one call.
+pub struct Inputs {
+    pub means: CubeTensor,
+    pub quats: CubeTensor,
+    pub scales: CubeTensor,
+    pub opacities: CubeTensor,
+    pub colors: CubeTensor,
+    pub cams: Vec<Camera<f32>>,
+    pub n: usize,
+    pub width: u32,
+    pub height: u32,
+}
+
+impl Inputs {
+    /// Flattens the Gaussian tensors and reads the (tiny) camera tensors back to the host.
+    pub fn new(t: [FloatTensor<CubeBackend>; 7], width: u32, height: u32) -> Self {
+        let n = t[0].shape()[0];
+        let [means, quats, scales, opacities, colors, viewmats, ks] = t.map(flat);
+        let (vm, k) = (read_f32(viewmats), read_f32(ks));
+        let cams = (0..vm.len() / 16)
+            .map(|v| {
+                Camera::from_matrices(
+                    v,
+                    &vm[16 * v..16 * v + 16],
+                    &k[9 * v..9 * v + 9],
+                    width,
+                    height,
+                )
+                .unwrap_or_else(|e| {
+                    panic!("splat: invalid camera reached the kernel (validate first): {e}")
+                })
+            })
+            .collect();
+        Inputs {
+            means,
+            quats,
+            scales,
+            opacities,
+            colors,
+            cams,
+            n,
+            width,
+            height,
+        }
+    }
+}
+
+/// One view after projection and binning.
+struct ViewBins {
+    cam_rec: CubeTensor,
+    records: CubeTensor,
+    meta: CubeTensor,
+    meta_host: Vec<f32>,
+    bins: TileBins,
+    /// Uploaded `(tile_start, items)`; `None` when the view has no intersection.
+    lists: Option<(CubeTensor, CubeTensor)>,
+}
+
+/// Runs `project_forward` for view `v` and bins the result on the host. Requires `n > 0`.
+fn project_and_bin(inp: &Inputs, v: usize, cfg: &RasterConfig) -> ViewBins {
+    let cam = &inp.cams[v];
+    let client = inp.means.client.clone();
+    let cam_rec = upload_f32(&inp.means, camera_record(cam));
+    let records = empty_device_dtype(
+        client.clone(),
+        inp.means.device.clone(),
+        Shape::new([inp.n * RECORD_LANES]),
+        DType::F32,
+    );
+    let meta = empty_device_dtype(
+        client.clone(),
+        inp.means.device.clone(),
+        Shape::new([inp.n * META_LANES]),
+        DType::F32,
+    );
+    let cube_dim = CubeDim::new(&client, inp.n);
+    let cube_count = calculate_cube_count_elemwise(&client, inp.n, cube_dim);
+    project_forward::launch(
+        &client,
+        cube_count,
+        cube_dim,
+        inp.means.clone().into_tensor_arg(),
+        inp.quats.clone().into_tensor_arg(),
+        inp.scales.clone().into_tensor_arg(),
+        inp.opacities.clone().into_tensor_arg(),
+        inp.colors.clone().into_tensor_arg(),
+        cam_rec.clone().into_tensor_arg(),
+        records.clone().into_tensor_arg(),
+        meta.clone().into_tensor_arg(),
+        inp.n as u32,
+        inp.width,
+        inp.height,
+        cfg.near as f32,
+        cfg.far as f32,
+        cfg.eps2d as f32,
+        cfg.alpha_min as f32,
+    );
+    let rec_host = read_f32(records.clone());
+    let meta_host = read_f32(meta.clone());
+    let projected: Vec<Option<Projected<f32>>> = (0..inp.n)
+        .map(|i| {
+            let m = &meta_host[i * META_LANES..(i + 1) * META_LANES];
+            let tiles = TileRect {
+                x0: m[0] as u32,
+                y0: m[1] as u32,
+                x1: m[2] as u32,
+                y1: m[3] as u32,
+            };
+            if tiles.x1 <= tiles.x0 || tiles.y1 <= tiles.y0 {
+                return None;
+            }
+            let r = &rec_host[i * RECORD_LANES..(i + 1) * RECORD_LANES];
+            Some(Projected {
+                mean2d: [r[0], r[1]],
+                conic: Sym2 {
+                    a: r[2],
+                    b: r[3],
+                    c: r[4],
+                },
+                depth: r[9],
+                opacity: r[5],
+                color: [r[6], r[7], r[8]],
+                radius: [m[4] as i32, m[5] as i32],
+                tiles,
+            })
+        })
+        .collect();
+    let bins = bin_tiles(&projected, cam.tiles_x(), cam.tiles_y());
+    let lists = (!bins.items.is_empty()).then(|| {
+        let starts: Vec<u32> = bins.tile_start.iter().map(|&s| s as u32).collect();
+        (
+            upload_u32(&inp.means, &starts),
+            upload_u32(&inp.means, &bins.items),
+        )
+    });
+    ViewBins {
+        cam_rec,
+        records,
+        meta,
+        meta_host,
+        bins,
+        lists,
+    }
+}
+
+fn tile_grid(inp: &Inputs) -> (CubeCount, CubeDim) {
+    let (tx, ty) = (inp.width.div_ceil(TILE), inp.height.div_ceil(TILE));
+    (CubeCount::Static(tx, ty, 1), CubeDim::new_2d(TILE, TILE))
+}
+
+fn view_offset(inp: &Inputs, v: usize) -> u32 {
+    let off = v * inp.width as usize * inp.height as usize * OUT_CHANNELS;
+    u32::try_from(off).expect("splat: image batch too large for 32-bit offsets")
+}
+
+/// `splat_forward` on the GPU: `(image [V,H,W,5], radii [V,N,2], counts [V,2])`.
+pub fn forward(
+    inp: &Inputs,
+    cfg: &RasterConfig,
+) -> (
+    FloatTensor<CubeBackend>,
+    IntTensor<CubeBackend>,
+    IntTensor<CubeBackend>,
+) {
+    let (v_count, n) = (inp.cams.len(), inp.n);
+    let (w, h) = (inp.width as usize, inp.height as usize);
+    let image = zeros(&inp.means, v_count * h * w * OUT_CHANNELS);
+    let mut radii = vec![0i32; v_count * n * 2];
+    let mut counts = vec![0i64; v_count * 2];
+    if n > 0 {
+        for v in 0..v_count {
+            let vb = project_and_bin(inp, v, cfg);
+            for i in 0..n {
+                radii[(v * n + i) * 2] = vb.meta_host[i * META_LANES + 4] as i32;
+                radii[(v * n + i) * 2 + 1] = vb.meta_host[i * META_LANES + 5] as i32;
+            }
+            counts[2 * v] = vb.bins.visible as i64;
+            counts[2 * v + 1] = vb.bins.intersections() as i64;
+            let Some((starts, items)) = vb.lists else {
+                continue;
+            };
+            let (count, dim) = tile_grid(inp);
+            rasterize_forward::launch(
+                &inp.means.client,
+                count,
+                dim,
+                vb.records.into_tensor_arg(),
+                starts.into_tensor_arg(),
+                items.into_tensor_arg(),
+                image.clone().into_tensor_arg(),
+                inp.width,
+                inp.height,
+                inp.cams[v].tiles_x(),
+                view_offset(inp, v),
+                cfg.alpha_min as f32,
+                cfg.alpha_clamp.max_alpha() as f32,
+                cfg.transmittance_min as f32,
+            );
+        }
+    }
+    let device = inp.means.device.clone();
+    let image = CubeBackend::float_reshape(image, Shape::new([v_count, h, w, OUT_CHANNELS]));
+    let radii = CubeBackend::int_from_data(TensorData::new(radii, [v_count, n, 2]), &device);
+    let counts = CubeBackend::int_from_data(TensorData::new(counts, [v_count, 2]), &device);
+    (image, radii, counts)
+}
+
+fn has_float_atomic_add(t: &CubeTensor) -> bool {
+    t.client
+        .properties()
+        .atomic_type_usage(Type::atomic(ElemType::Float(FloatKind::F32)))
+        .contains(AtomicUsage::Add)
+}
+
+/// `splat_backward` on the GPU; `shapes` are the seven input shapes for the outputs.
+pub fn backward(
+    inp: &Inputs,
+    grad_image: FloatTensor<CubeBackend>,
+    shapes: [Shape; 7],
+    cfg: &RasterConfig,
+) -> SplatGrads<CubeBackend> {
+    let n = inp.n;
+    let grad_image = flat(grad_image);
+    let [g_means, g_quats, g_scales, g_opac, g_colors] =
+        [3, 4, 3, 1, 3].map(|lanes| zeros(&inp.means, n * lanes));
+    let mut cam_grads = Vec::with_capacity(inp.cams.len());
+    let native = has_float_atomic_add(&inp.means) && !FORCE_CAS.load(Ordering::SeqCst);
+    for v in 0..inp.cams.len() {
+        let mut cg = CameraGrad::<f32>::zero();
+        if n > 0 {
+            let vb = project_and_bin(inp, v, cfg);
+            if let Some((starts, items)) = vb.lists {
+                let v_proj = zeros(&inp.means, n * RECORD_LANES);
+                let (count, dim) = tile_grid(inp);
+                let launch = if native {
+                    rasterize_backward::launch::<NativeAdd>
+                } else {
+                    rasterize_backward::launch::<CasAdd>
+                };
+                launch(
+                    &inp.means.client,
+                    count,
+                    dim,
+                    vb.records.into_tensor_arg(),
+                    starts.into_tensor_arg(),
+                    items.into_tensor_arg(),
+                    grad_image.clone().into_tensor_arg(),
+                    v_proj.clone().into_tensor_arg(),
+                    inp.width,
+                    inp.height,
+                    inp.cams[v].tiles_x(),
+                    view_offset(inp, v),
+                    cfg.alpha_min as f32,
+                    cfg.alpha_clamp.max_alpha() as f32,
+                    cfg.transmittance_min as f32,
+                );
+                let cam_part = empty_device_dtype(
+                    inp.means.client.clone(),
+                    inp.means.device.clone(),
+                    Shape::new([n * CAM_GRAD_LANES]),
+                    DType::F32,
+                );
+                let client = &inp.means.client;
+                let cube_dim = CubeDim::new(client, n);
+                let cube_count = calculate_cube_count_elemwise(client, n, cube_dim);
+                project_backward::launch(
+                    client,
+                    cube_count,
+                    cube_dim,
+                    inp.means.clone().into_tensor_arg(),
+                    inp.quats.clone().into_tensor_arg(),
+                    inp.scales.clone().into_tensor_arg(),
+                    vb.cam_rec.into_tensor_arg(),
+                    vb.meta.into_tensor_arg(),
+                    v_proj.into_tensor_arg(),
+                    g_means.clone().into_tensor_arg(),
+                    g_quats.clone().into_tensor_arg(),
+                    g_scales.clone().into_tensor_arg(),
+                    g_opac.clone().into_tensor_arg(),
+                    g_colors.clone().into_tensor_arg(),
+                    cam_part.clone().into_tensor_arg(),
+                    n as u32,
+                    cfg.near as f32,
+                    cfg.far as f32,
+                    cfg.eps2d as f32,
+                );
+                // Sum the per-Gaussian camera partials on the device; only 16 floats come back.
+                let sums = read_f32(CubeBackend::float_sum_dim(
+                    CubeBackend::float_reshape(cam_part, Shape::new([n, CAM_GRAD_LANES])),
+                    0,
+                ));
+                cg = CameraGrad {
+                    rot: Mat3([
+                        [sums[0], sums[1], sums[2]],
+                        [sums[3], sums[4], sums[5]],
+                        [sums[6], sums[7], sums[8]],
+                    ]),
+                    trans: [sums[9], sums[10], sums[11]],
+                    fx: sums[12],
+                    fy: sums[13],
+                    cx: sums[14],
+                    cy: sums[15],
+                };
+            }
+        }
+        cam_grads.push(cg.to_matrices());
+    }
+    let vm: Vec<f32> = cam_grads.iter().flat_map(|(m, _)| m.to_vec()).collect();
+    let ks: Vec<f32> = cam_grads.iter().flat_map(|(_, k)| k.to_vec()).collect();
+    let [s_m, s_q, s_s, s_o, s_c, s_v, s_k] = shapes;
+    let device = inp.means.device.clone();
+    SplatGrads {
+        means: CubeBackend::float_reshape(g_means, s_m),
+        quats: CubeBackend::float_reshape(g_quats, s_q),
+        scales: CubeBackend::float_reshape(g_scales, s_s),
+        opacities: CubeBackend::float_reshape(g_opac, s_o),
+        colors: CubeBackend::float_reshape(g_colors, s_c),
+        viewmats: CubeBackend::float_from_data(TensorData::new(vm, s_v), &device),
+        ks: CubeBackend::float_from_data(TensorData::new(ks, s_k), &device),
+    }
+}
