@@ -1,7 +1,7 @@
 //! Rasterizer benchmark (not a test): forward and forward+backward at 350x518 with 10k,
 //! 100k and 362k Gaussians (two frames of per-pixel Gaussians, as Envision4D renders them).
 //!
-//! `cargo bench -p envision4d-splat --bench raster [-- --wgpu] [-- --quick]`
+//! `cargo bench -p envision4d-splat --bench raster [-- --wgpu] [--quick] [--max-gaussians N]`
 //! Prints ms per view and Gaussian-tile pairs per second; results go to docs/PERFORMANCE.md.
 
 use burn::tensor::{Device, DeviceKind, Tensor, TensorData};
@@ -147,6 +147,13 @@ fn main() {
         devices.push(("wgpu", Device::wgpu(DeviceKind::DefaultDevice)));
     }
     let reps = if quick { 1 } else { 3 };
+    // Software Vulkan (lavapipe) is far too slow for the big scenes; let a run cap the size.
+    let max_n: usize = args
+        .iter()
+        .position(|a| a == "--max-gaussians")
+        .and_then(|i| args.get(i + 1))
+        .map(|v| v.parse().expect("--max-gaussians takes a number"))
+        .unwrap_or(usize::MAX);
     let full = street_scene(2, 7);
     let cfg = RasterConfig::default();
     println!(
@@ -158,7 +165,7 @@ fn main() {
     println!("| backend | Gaussians | visible | tile pairs | forward ms/view | fwd+bwd ms/view | fwd pairs/s | fwd+bwd pairs/s |");
     println!("|---|---|---|---|---|---|---|---|");
     for (name, device) in devices {
-        for n in [10_000usize, 100_000, full.len()] {
+        for n in [10_000usize, 100_000, full.len()].into_iter().filter(|n| *n <= max_n) {
             let scene = if n == full.len() {
                 full.clone()
             } else {
