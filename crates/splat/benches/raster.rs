@@ -165,7 +165,10 @@ fn main() {
     println!("| backend | Gaussians | visible | tile pairs | forward ms/view | fwd+bwd ms/view | fwd pairs/s | fwd+bwd pairs/s |");
     println!("|---|---|---|---|---|---|---|---|");
     for (name, device) in devices {
-        for n in [10_000usize, 100_000, full.len()].into_iter().filter(|n| *n <= max_n) {
+        for n in [10_000usize, 100_000, full.len()]
+            .into_iter()
+            .filter(|n| *n <= max_n)
+        {
             let scene = if n == full.len() {
                 full.clone()
             } else {

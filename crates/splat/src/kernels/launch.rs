@@ -51,12 +51,30 @@ fn flat(t: CubeTensor) -> CubeTensor {
     CubeBackend::float_reshape(into_contiguous(t), Shape::new([n]))
 }
 
+/// Fails loudly when a buffer of `elems` 4-byte values cannot be bound on this device.
+///
+/// WebGPU limits one storage binding (128 MiB on lavapipe and the WebGPU default; more on real
+/// GPUs). Past it wgpu would reject or silently truncate the binding, so stop first with the
+/// numbers and a way out; the op has no error channel, hence a panic with a clear message.
+pub fn check_binding(like: &CubeTensor, what: &str, elems: usize) {
+    let limit = like.client.properties().memory.max_page_size;
+    let bytes = (elems as u64).saturating_mul(4);
+    if bytes > limit {
+        panic!(
+            "splat (CubeCL): the {what} buffer needs {bytes} bytes but this device binds at most \
+             {limit} bytes per storage buffer; render fewer Gaussians or fewer/smaller views per \
+             call, or use the CPU backend"
+        );
+    }
+}
+
 fn upload_f32(like: &CubeTensor, v: Vec<f32>) -> CubeTensor {
     let len = v.len();
     CubeBackend::float_from_data(TensorData::new(v, [len]), &like.device)
 }
 
 fn upload_u32(like: &CubeTensor, v: &[u32]) -> CubeTensor {
+    check_binding(like, "tile list", v.len());
     let bytes: Vec<u8> = v.iter().flat_map(|x| x.to_le_bytes()).collect();
     let handle = like.client.create_from_slice(&bytes);
     CubeTensor::new_contiguous(
@@ -69,6 +87,7 @@ fn upload_u32(like: &CubeTensor, v: &[u32]) -> CubeTensor {
 }
 
 fn zeros(like: &CubeTensor, len: usize) -> CubeTensor {
+    check_binding(like, "output", len);
     zeros_client(
         like.client.clone(),
         like.device.clone(),
@@ -153,6 +172,7 @@ fn project_and_bin(inp: &Inputs, v: usize, cfg: &RasterConfig) -> ViewBins {
     let cam = &inp.cams[v];
     let client = inp.means.client.clone();
     let cam_rec = upload_f32(&inp.means, camera_record(cam));
+    check_binding(&inp.means, "projected Gaussian", inp.n * RECORD_LANES);
     let records = empty_device_dtype(
         client.clone(),
         inp.means.device.clone(),

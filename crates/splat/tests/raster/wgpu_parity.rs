@@ -60,7 +60,10 @@ fn t<const D: usize>(v: &[f64], shape: [usize; D], device: &Device) -> Tensor<D>
 }
 
 fn to_vec<const D: usize>(x: Tensor<D>) -> Vec<f64> {
-    x.into_data().convert::<f64>().try_into_vec::<f64>().unwrap()
+    x.into_data()
+        .convert::<f64>()
+        .try_into_vec::<f64>()
+        .unwrap()
 }
 
 /// Everything one device produced for one scene.
@@ -349,4 +352,48 @@ fn wgpu_culls_poisoned_gaussians() {
         intrinsics(w, h, 30.0),
     )];
     check_parity(&scene, &views, w, h, &RasterConfig::default());
+}
+
+/// Guards the storage-binding limit: a render whose output cannot be bound on the device
+/// (16384² x 5 floats = 5.4 GB, past any WebGPU per-binding limit) must stop with a message
+/// naming the buffer and the limit, never silently truncate or corrupt.
+#[test]
+fn wgpu_oversized_buffer_fails_loudly() {
+    let Some(device) = wgpu_device() else { return };
+    let mut scene = HostScene::default();
+    scene.push(
+        [0.0, 0.0, 2.0],
+        [1.0, 0.0, 0.0, 0.0],
+        [0.1; 3],
+        0.9,
+        [1.0; 3],
+    );
+    let side = 16384u32;
+    let view: View = (
+        look_at([0.0, 0.0, 0.0], [0.0, 0.0, 1.0]),
+        intrinsics(side, side, 8000.0),
+    );
+    let n = scene.len();
+    let g = Gaussians {
+        means: t(&scene.means, [n, 3], &device),
+        quats: t(&scene.quats, [n, 4], &device),
+        scales: t(&scene.scales, [n, 3], &device),
+        opacities: t(&scene.opacities, [n], &device),
+        colors: t(&scene.colors, [n, 3], &device),
+    };
+    let c = Cameras {
+        viewmats: t(&view.0, [1, 4, 4], &device),
+        ks: t(&view.1, [1, 3, 3], &device),
+        width: side,
+        height: side,
+    };
+    let result = catch_unwind(AssertUnwindSafe(|| {
+        render(&g, &c, &RasterConfig::default()).map(|o| o.alpha.dims())
+    }));
+    let err = result.expect_err("a 5.4 GB output buffer cannot be bound");
+    let msg = err.downcast_ref::<String>().cloned().unwrap_or_default();
+    assert!(
+        msg.contains("output buffer") && msg.contains("bytes per storage buffer"),
+        "unclear message: {msg}"
+    );
 }
