@@ -4,7 +4,7 @@ use crate::backend_choice::BackendChoice;
 use crate::image_out::{write_gray, write_rgb, ImageFormat};
 use crate::InputError;
 use anyhow::{Context, Result};
-use burn::tensor::{Tensor, TensorData};
+use burn::tensor::Tensor;
 use clap::Args;
 use envision4d_splat::camera_json::read_camera_json;
 use envision4d_splat::ply::read_ply;
@@ -94,27 +94,17 @@ pub fn run(args: SplatArgs) -> Result<()> {
     let n = ply.len();
 
     let device = args.backend.device();
-    let f = |v: Vec<f32>, shape: Vec<usize>| TensorData::new(v, shape);
-    let gaussians = Gaussians {
-        means: Tensor::from_data(f(params.means, vec![n, 3]), &device),
-        quats: Tensor::from_data(f(params.quats, vec![n, 4]), &device),
-        scales: Tensor::from_data(f(params.scales, vec![n, 3]), &device),
-        opacities: Tensor::from_data(f(params.opacities, vec![n]), &device),
-        colors: Tensor::from_data(f(params.colors, vec![n, 3]), &device),
-    };
-    let vm: Vec<f32> = cam
-        .world_to_camera
-        .iter()
-        .flatten()
-        .map(|v| *v as f32)
-        .collect();
-    let k: Vec<f32> = cam.k_matrix().iter().flatten().map(|v| *v as f32).collect();
-    let cameras = Cameras {
-        viewmats: Tensor::from_data(f(vm, vec![1, 4, 4]), &device),
-        ks: Tensor::from_data(f(k, vec![1, 3, 3]), &device),
-        width: cam.width,
-        height: cam.height,
-    };
+    let gaussians = Gaussians::from_host(
+        params.means,
+        params.quats,
+        params.scales,
+        params.opacities,
+        params.colors,
+        &device,
+    )
+    .map_err(|e| InputError(e.to_string()))?;
+    let k = cam.k_matrix();
+    let cameras = Cameras::from_host(&[cam.world_to_camera], &[k], cam.width, cam.height, &device);
     let config = RasterConfig {
         background: args.background,
         alpha_clamp: match args.alpha_clamp {

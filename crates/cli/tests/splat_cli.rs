@@ -1,7 +1,7 @@
 //! `envision4d splat` end to end: real files in, images out, and every bad-input case exits
 //! with code 2 and a message naming the problem, without writing the output.
 
-use burn::tensor::{Device, Tensor, TensorData};
+use burn::tensor::Device;
 use envision4d_splat::ply::{write_ply, PlyGaussians, RenderParams};
 use envision4d_splat::testkit::{random_scene, SceneSpec};
 use envision4d_splat::{render, Cameras, Gaussians, RasterConfig};
@@ -105,27 +105,23 @@ fn cli_exr_equals_library_render() {
     assert!(o.status.success(), "{}", stderr(&o));
 
     let device = Device::flex();
-    let n = params.opacities.len();
-    let t = |v: &Vec<f32>, k: usize| {
-        Tensor::<2>::from_data(TensorData::new(v.clone(), [n, k]), &device)
-    };
-    let g = Gaussians {
-        means: t(&params.means, 3),
-        quats: t(&params.quats, 4),
-        scales: t(&params.scales, 3),
-        opacities: Tensor::from_data(TensorData::new(params.opacities.clone(), [n]), &device),
-        colors: t(&params.colors, 3),
-    };
-    let vm = [
-        1.0f32, 0., 0., 0., 0., 1., 0., 0., 0., 0., 1., 0., 0., 0., 0., 1.,
+    let g = Gaussians::from_host(
+        params.means,
+        params.quats,
+        params.scales,
+        params.opacities,
+        params.colors,
+        &device,
+    )
+    .unwrap();
+    let identity = [
+        [1.0, 0.0, 0.0, 0.0],
+        [0.0, 1.0, 0.0, 0.0],
+        [0.0, 0.0, 1.0, 0.0],
+        [0.0, 0.0, 0.0, 1.0],
     ];
-    let k = [50.0f32, 0., 32., 0., 50., 24., 0., 0., 1.];
-    let c = Cameras {
-        viewmats: Tensor::from_data(TensorData::new(vm.to_vec(), [1, 4, 4]), &device),
-        ks: Tensor::from_data(TensorData::new(k.to_vec(), [1, 3, 3]), &device),
-        width: 64,
-        height: 48,
-    };
+    let k = [[50.0, 0.0, 32.0], [0.0, 50.0, 24.0], [0.0, 0.0, 1.0]];
+    let c = Cameras::from_host(&[identity], &[k], 64, 48, &device);
     let cfg = RasterConfig {
         background: Some([0.1, 0.2, 0.3]),
         ..Default::default()

@@ -4,7 +4,7 @@
 //! `cargo bench -p envision4d-splat --bench raster [-- --wgpu] [--quick] [--max-gaussians N]`
 //! Prints ms per view and Gaussian-tile pairs per second; results go to docs/PERFORMANCE.md.
 
-use burn::tensor::{Device, DeviceKind, Tensor, TensorData};
+use burn::tensor::{Device, DeviceKind};
 use envision4d_splat::testkit::{look_at, HostScene, SplitMix64};
 use envision4d_splat::{render, Cameras, Gaussians, RasterConfig};
 use std::time::{Duration, Instant};
@@ -81,50 +81,28 @@ fn subsample(s: &HostScene, n: usize, seed: u64) -> HostScene {
 }
 
 fn tensors(s: &HostScene, device: &Device, grad: bool) -> (Gaussians, Cameras) {
-    let n = s.len();
     let [m, q, sc, o, c] = s.to_f32();
-    let t2 = |v: Vec<f32>, k: usize| {
-        let t = Tensor::<2>::from_data(TensorData::new(v, [n, k]), device);
-        if grad {
-            t.require_grad()
-        } else {
-            t
-        }
-    };
-    let vm: Vec<f32> = look_at([0.0, 0.0, 0.4], [0.0, 0.0, 10.0])
-        .iter()
-        .map(|v| *v as f32)
-        .collect();
-    let k = [
-        FOCAL as f32,
-        0.0,
-        W as f32 / 2.0,
-        0.0,
-        FOCAL as f32,
-        H as f32 / 2.0,
-        0.0,
-        0.0,
-        1.0,
-    ];
-    let mut op = Tensor::<1>::from_data(TensorData::new(o, [n]), device);
+    let mut g = Gaussians::from_host(m, q, sc, o, c, device).expect("consistent scene");
     if grad {
-        op = op.require_grad();
+        g.means = g.means.require_grad();
+        g.quats = g.quats.require_grad();
+        g.scales = g.scales.require_grad();
+        g.opacities = g.opacities.require_grad();
+        g.colors = g.colors.require_grad();
     }
-    (
-        Gaussians {
-            means: t2(m, 3),
-            quats: t2(q, 4),
-            scales: t2(sc, 3),
-            opacities: op,
-            colors: t2(c, 3),
-        },
-        Cameras {
-            viewmats: Tensor::from_data(TensorData::new(vm, [1, 4, 4]), device),
-            ks: Tensor::from_data(TensorData::new(k.to_vec(), [1, 3, 3]), device),
-            width: W,
-            height: H,
-        },
-    )
+    let v = look_at([0.0, 0.0, 0.4], [0.0, 0.0, 10.0]);
+    let viewmat = [
+        [v[0], v[1], v[2], v[3]],
+        [v[4], v[5], v[6], v[7]],
+        [v[8], v[9], v[10], v[11]],
+        [v[12], v[13], v[14], v[15]],
+    ];
+    let k = [
+        [FOCAL, 0.0, W as f64 / 2.0],
+        [0.0, FOCAL, H as f64 / 2.0],
+        [0.0, 0.0, 1.0],
+    ];
+    (g, Cameras::from_host(&[viewmat], &[k], W, H, device))
 }
 
 fn time<T>(reps: usize, mut f: impl FnMut() -> T) -> Duration {

@@ -8,7 +8,7 @@ use crate::backend::SplatOps;
 use crate::camera::{Camera, CameraError};
 use crate::config::RasterConfig;
 use burn::backend::Dispatch;
-use burn::tensor::{s, Int, Tensor, TensorData};
+use burn::tensor::{s, Device, Int, Tensor, TensorData};
 
 /// Gaussians with activations applied (what gsplat's `rasterization` takes).
 #[derive(Debug, Clone)]
@@ -25,6 +25,39 @@ pub struct Gaussians {
     pub colors: Tensor<2>,
 }
 
+impl Gaussians {
+    /// Builds the tensors from flat row-major host arrays (`means`/`scales`/`colors` N*3,
+    /// `quats` N*4, `opacities` N, with N = `opacities.len()`) in the device's default float
+    /// type; a length mismatch is an error naming the array.
+    pub fn from_host(
+        means: Vec<f32>,
+        quats: Vec<f32>,
+        scales: Vec<f32>,
+        opacities: Vec<f32>,
+        colors: Vec<f32>,
+        device: &Device,
+    ) -> Result<Self, RenderError> {
+        let n = opacities.len();
+        let rows = |name: &'static str, v: Vec<f32>, k: usize| -> Result<Tensor<2>, RenderError> {
+            if v.len() != n * k {
+                return Err(RenderError::Shape {
+                    name,
+                    expected: format!("[{n}, {k}] ({} values)", n * k),
+                    got: vec![v.len()],
+                });
+            }
+            Ok(Tensor::from_data(TensorData::new(v, [n, k]), device))
+        };
+        Ok(Gaussians {
+            means: rows("means", means, 3)?,
+            quats: rows("quats", quats, 4)?,
+            scales: rows("scales", scales, 3)?,
+            opacities: Tensor::from_data(TensorData::new(opacities, [n]), device),
+            colors: rows("colors", colors, 3)?,
+        })
+    }
+}
+
 /// A batch of V cameras sharing one image size.
 #[derive(Debug, Clone)]
 pub struct Cameras {
@@ -34,6 +67,27 @@ pub struct Cameras {
     pub ks: Tensor<3>,
     pub width: u32,
     pub height: u32,
+}
+
+impl Cameras {
+    /// Builds V cameras from row-major world-to-camera matrices and intrinsics.
+    pub fn from_host(
+        viewmats: &[[[f64; 4]; 4]],
+        ks: &[[[f64; 3]; 3]],
+        width: u32,
+        height: u32,
+        device: &Device,
+    ) -> Self {
+        let flat = |v: Vec<f64>| v.into_iter().map(|x| x as f32).collect::<Vec<f32>>();
+        let vm = flat(viewmats.iter().flatten().flatten().copied().collect());
+        let k = flat(ks.iter().flatten().flatten().copied().collect());
+        Cameras {
+            viewmats: Tensor::from_data(TensorData::new(vm, [viewmats.len(), 4, 4]), device),
+            ks: Tensor::from_data(TensorData::new(k, [ks.len(), 3, 3]), device),
+            width,
+            height,
+        }
+    }
 }
 
 /// Non-differentiable by-products of a render (gsplat's `meta`).
