@@ -1,0 +1,64 @@
+//! Multi-head self-attention as in VGGT/DINOv2: fused qkv projection, optional per-head
+//! LayerNorm of q and k ("qk-norm"), optional 2D RoPE, softmax attention, output projection.
+
+use super::rope::RopeTables;
+use burn::module::Module;
+use burn::nn::{LayerNorm, LayerNormConfig, Linear, LinearConfig};
+use burn::tensor::activation::softmax;
+use burn::tensor::{Device, Tensor};
+
+/// LayerNorm epsilon of the q/k norms (PyTorch default).
+pub const QK_NORM_EPS: f64 = 1e-5;
+
+#[derive(Module, Debug)]
+pub struct Attention {
+    pub qkv: Linear,
+    pub proj: Linear,
+    pub q_norm: Option<LayerNorm>,
+    pub k_norm: Option<LayerNorm>,
+    pub num_heads: usize,
+}
+
+/// Whether q and k are layer-normalised per head before attention.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum QkNorm {
+    On,
+    Off,
+}
+
+impl Attention {
+    pub fn new(dim: usize, num_heads: usize, qk_norm: QkNorm, device: &Device) -> Self {
+        let head_dim = dim / num_heads;
+        let norm = || LayerNormConfig::new(head_dim).with_epsilon(QK_NORM_EPS).init(device);
+        Attention {
+            qkv: LinearConfig::new(dim, 3 * dim).init(device),
+            proj: LinearConfig::new(dim, dim).init(device),
+            q_norm: (qk_norm == QkNorm::On).then(norm),
+            k_norm: (qk_norm == QkNorm::On).then(norm),
+            num_heads,
+        }
+    }
+
+    /// `x: [B, N, C]` → `[B, N, C]`; `rope` rotates q and k after the qk-norm.
+    pub fn forward(&self, x: Tensor<3>, rope: Option<&RopeTables>) -> Tensor<3> {
+        let [b, n, c] = x.dims();
+        let h = self.num_heads;
+        let d = c / h;
+        // [B, N, 3C] -> [3, B, H, N, d]: the 3C axis is [q | k | v], each split into heads.
+        let qkv = self.qkv.forward(x).reshape([b, n, 3, h, d]).permute([2, 0, 3, 1, 4]);
+        let part = |i: usize| qkv.clone().slice([i..i + 1, 0..b, 0..h, 0..n, 0..d]).reshape([b, h, n, d]);
+        let (mut q, mut k, v) = (part(0), part(1), part(2));
+        if let (Some(qn), Some(kn)) = (&self.q_norm, &self.k_norm) {
+            q = qn.forward(q);
+            k = kn.forward(k);
+        }
+        if let Some(r) = rope {
+            q = r.apply(q);
+            k = r.apply(k);
+        }
+        let scale = (d as f64).powf(-0.5);
+        let attn = softmax(q.mul_scalar(scale).matmul(k.swap_dims(2, 3)), 3);
+        let out = attn.matmul(v).swap_dims(1, 2).reshape([b, n, c]);
+        self.proj.forward(out)
+    }
+}

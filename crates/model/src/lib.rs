@@ -1,0 +1,12 @@
+//! `envision4d-model`: the Envision4D network on Burn.
+//!
+//! VGGT backbone (DINOv2 patch embed, alternating frame/global attention with 2D RoPE) with
+//! in-layer temporal attention, the future-pose module, the camera head, DPT heads for depth,
+//! Gaussians and motion (on conditioned-motion-lifting tokens), and the Gaussian adapter.
+//! Parameter names follow the official `state_dict`, so checkpoints load by name.
+
+pub mod config;
+pub mod layers;
+
+pub use config::{ConfigError, ModelConfig};
+pub mod weights;

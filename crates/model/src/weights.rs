@@ -1,0 +1,128 @@
+//! Loading weights by their official `state_dict` names (burn-store, safetensors).
+//!
+//! Checkpoints name tensors exactly like the PyTorch modules (`aggregator.frame_blocks.0.
+//! attn.qkv.weight`, ...), possibly under a prefix (`encoder.backbone.` in the Lightning
+//! checkpoint, `weights/` in the fixtures). `PyTorchToBurnAdapter` transposes `nn.Linear`
+//! weights and renames LayerNorm `weight/bias`, but never the LayerScale `gamma`.
+//! Every problem — missing, unexpected or mis-shaped keys — is collected into one error.
+
+use burn::module::Module;
+use burn::store::{ApplyError, KeyRemapper, ModuleSnapshot, PyTorchToBurnAdapter, SafetensorsStore};
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+/// Which checkpoint keys must be consumed by the module.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Unexpected {
+    /// Keys under the prefix that the module does not have are an error (strict loading).
+    Reject,
+    /// Keys the module does not have are ignored (e.g. VGGT-1B's `point_head`/`track_head`,
+    /// or the `expected/*` tensors of a fixture).
+    Ignore,
+}
+
+/// Which module parameters the checkpoint must provide.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Missing {
+    /// Every parameter must be present.
+    Reject,
+    /// Parameters absent from the checkpoint keep their fresh initialisation (initialising
+    /// Envision4D from VGGT-1B leaves the new modules fresh).
+    KeepInit,
+}
+
+/// A checkpoint that does not fit the module, with every offending key listed.
+#[derive(Debug, thiserror::Error)]
+pub enum LoadError {
+    #[error("{path}: cannot read checkpoint: {message}")]
+    Read { path: PathBuf, message: String },
+    #[error("{path}: checkpoint does not match the model:\n{report}")]
+    Mismatch { path: PathBuf, report: String },
+}
+
+/// Outcome of a successful load.
+#[derive(Debug, Clone, Default)]
+pub struct LoadReport {
+    pub applied: usize,
+    /// Parameters left at their initial values (only with [`Missing::KeepInit`]).
+    pub kept_init: Vec<String>,
+    /// Checkpoint keys nobody used (only with [`Unexpected::Ignore`]).
+    pub ignored: Vec<String>,
+}
+
+/// Loads `module`'s parameters from the tensors of `path` whose names start with `prefix`
+/// (the prefix is stripped; other keys are never looked at).
+pub fn load_safetensors<M: Module + ModuleSnapshot>(module: &mut M, path: &Path, prefix: &str, missing: Missing, unexpected: Unexpected) -> Result<LoadReport, LoadError> {
+    let under_prefix = header_names(path)?
+        .into_iter()
+        .filter_map(|n| n.strip_prefix(prefix).map(str::to_string))
+        .collect::<std::collections::HashSet<String>>();
+    let pattern = format!("^{}(.*)$", regex_escape(prefix));
+    let remap = KeyRemapper::new()
+        .add_pattern(&pattern, "$1")
+        .map_err(|e| LoadError::Read { path: path.to_path_buf(), message: format!("bad prefix {prefix:?}: {e}") })?;
+    let mut store = SafetensorsStore::from_file(path).remap(remap).with_from_adapter(PyTorchToBurnAdapter).allow_partial(true);
+    let result = module
+        .load_from(&mut store)
+        .map_err(|e| LoadError::Read { path: path.to_path_buf(), message: format!("{e:?}") })?;
+
+    let mut report = String::new();
+    for e in &result.errors {
+        let line = match e {
+            ApplyError::ShapeMismatch { path, expected, found } => format!("  mis-shaped: {path}: model expects {expected:?}, checkpoint has {found:?}"),
+            other => format!("  {other:?}"),
+        };
+        let _ = writeln!(report, "{line}");
+    }
+    if missing == Missing::Reject {
+        for (key, _) in &result.missing {
+            let _ = writeln!(report, "  missing: {prefix}{key}");
+        }
+    }
+    // Only keys under the prefix count as unexpected: others were never meant for the model.
+    let unused_under_prefix: Vec<String> = result.unused.iter().filter(|k| under_prefix.contains(*k)).cloned().collect();
+    if unexpected == Unexpected::Reject {
+        for key in &unused_under_prefix {
+            let _ = writeln!(report, "  unexpected: {prefix}{key}");
+        }
+    }
+    if !report.is_empty() {
+        return Err(LoadError::Mismatch { path: path.to_path_buf(), report });
+    }
+    Ok(LoadReport {
+        applied: result.applied.len(),
+        kept_init: result.missing.iter().map(|(k, _)| k.clone()).collect(),
+        ignored: unused_under_prefix,
+    })
+}
+
+/// Largest safetensors header we accept (the paper model's has ~1.6k entries, ~200 KB).
+const MAX_HEADER_BYTES: u64 = 64 << 20;
+
+/// Tensor names in a safetensors file, read from its header only.
+pub fn header_names(path: &Path) -> Result<Vec<String>, LoadError> {
+    use std::io::Read;
+    let read_err = |message: String| LoadError::Read { path: path.to_path_buf(), message };
+    let mut f = std::fs::File::open(path).map_err(|e| read_err(e.to_string()))?;
+    let mut len = [0u8; 8];
+    f.read_exact(&mut len).map_err(|e| read_err(format!("not a safetensors file (no header length): {e}")))?;
+    let n = u64::from_le_bytes(len);
+    if n == 0 || n > MAX_HEADER_BYTES {
+        return Err(read_err(format!("not a safetensors file (header length {n})")));
+    }
+    let mut header = vec![0u8; n as usize];
+    f.read_exact(&mut header).map_err(|e| read_err(format!("truncated safetensors header: {e}")))?;
+    let map: serde_json::Map<String, serde_json::Value> =
+        serde_json::from_slice(&header).map_err(|e| read_err(format!("corrupt safetensors header: {e}")))?;
+    Ok(map.into_iter().map(|(k, _)| k).filter(|k| k != "__metadata__").collect())
+}
+
+fn regex_escape(s: &str) -> String {
+    s.chars().fold(String::new(), |mut out, c| {
+        if "\\.+*?()|[]{}^$".contains(c) {
+            out.push('\\');
+        }
+        out.push(c);
+        out
+    })
+}
