@@ -9,4 +9,12 @@ pub mod config;
 pub mod layers;
 
 pub use config::{ConfigError, ModelConfig};
+pub use model::Envision4d;
 pub mod weights;
+pub mod aggregator;
+pub mod camera_head;
+pub mod dino;
+pub mod future;
+pub mod pose;
+pub mod resample;
+pub mod model;

@@ -52,15 +52,41 @@ pub struct LoadReport {
 
 /// Loads `module`'s parameters from the tensors of `path` whose names start with `prefix`
 /// (the prefix is stripped; other keys are never looked at).
+/// PyTorch `nn.Sequential` children are numbered (`poseLN_modulation.1`, `time_embedding.0`);
+/// our modules name them. Each rule is a regex on the stripped key and its replacement.
+pub const KEY_RENAMES: &[(&str, &str)] = &[
+    // The future-pose parameters sit on the release's model root; ours group them.
+    (r"^(extra_token_offset$|extra_blocks\.|time_embedding\.)", "future.${1}"),
+    (r"(^|\.)poseLN_modulation\.1\.", "${1}pose_ln_modulation."),
+    (r"(^|\.)time_embedding\.0\.", "${1}time_embedding.fc1."),
+    (r"(^|\.)time_embedding\.2\.", "${1}time_embedding.fc2."),
+    (r"(^|\.)output_conv2\.0\.", "${1}output_conv2.conv1."),
+    (r"(^|\.)output_conv2\.2\.", "${1}output_conv2.conv2."),
+    (r"(^|\.)input_merger\.0\.", "${1}input_merger."),
+    (r"(^|\.)resize_layers\.0\.", "${1}resize0."),
+    (r"(^|\.)resize_layers\.1\.", "${1}resize1."),
+    (r"(^|\.)resize_layers\.3\.", "${1}resize3."),
+];
+
+/// Our name of an official (prefix-stripped) key.
+pub fn rename_key(key: &str) -> String {
+    static RULES: std::sync::OnceLock<Vec<(regex::Regex, &'static str)>> = std::sync::OnceLock::new();
+    let rules = RULES.get_or_init(|| KEY_RENAMES.iter().map(|(f, t)| (regex::Regex::new(f).expect("valid rename regex"), *t)).collect());
+    rules.iter().fold(key.to_string(), |k, (re, to)| re.replace_all(&k, *to).into_owned())
+}
+
 pub fn load_safetensors<M: Module + ModuleSnapshot>(module: &mut M, path: &Path, prefix: &str, missing: Missing, unexpected: Unexpected) -> Result<LoadReport, LoadError> {
     let under_prefix = header_names(path)?
         .into_iter()
-        .filter_map(|n| n.strip_prefix(prefix).map(str::to_string))
+        .filter_map(|n| n.strip_prefix(prefix).map(rename_key))
         .collect::<std::collections::HashSet<String>>();
     let pattern = format!("^{}(.*)$", regex_escape(prefix));
-    let remap = KeyRemapper::new()
+    let mut remap = KeyRemapper::new()
         .add_pattern(&pattern, "$1")
         .map_err(|e| LoadError::Read { path: path.to_path_buf(), message: format!("bad prefix {prefix:?}: {e}") })?;
+    for (from, to) in KEY_RENAMES {
+        remap = remap.add_pattern(*from, *to).map_err(|e| LoadError::Read { path: path.to_path_buf(), message: format!("bad rename {from}: {e}") })?;
+    }
     let mut store = SafetensorsStore::from_file(path).remap(remap).with_from_adapter(PyTorchToBurnAdapter).allow_partial(true);
     let result = module
         .load_from(&mut store)

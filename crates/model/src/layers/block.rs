@@ -40,7 +40,11 @@ pub struct Mlp {
 
 impl Mlp {
     pub fn new(dim: usize, hidden: usize, device: &Device) -> Self {
-        Mlp { fc1: LinearConfig::new(dim, hidden).init(device), fc2: LinearConfig::new(hidden, dim).init(device) }
+        Self::with_output(dim, hidden, dim, device)
+    }
+
+    pub fn with_output(dim_in: usize, hidden: usize, dim_out: usize, device: &Device) -> Self {
+        Mlp { fc1: LinearConfig::new(dim_in, hidden).init(device), fc2: LinearConfig::new(hidden, dim_out).init(device) }
     }
 
     pub fn forward<const D: usize>(&self, x: Tensor<D>) -> Tensor<D> {

@@ -2,4 +2,5 @@
 //! (seeded random weights under their official names, inputs and expected outputs).
 
 mod fixture;
+mod backbone;
 mod layers;

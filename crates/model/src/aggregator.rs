@@ -1,0 +1,136 @@
+//! The VGGT aggregator with Envision4D's in-layer temporal attention (paper §3.2).
+//!
+//! Per context frame: `[camera | registers | DINO patch tokens]`. Each layer runs a frame
+//! block (attention within one image) then a global block (attention across all frames), both
+//! with 2D RoPE. After the global blocks listed in `temporal_layers`, a temporal block attends
+//! over time for every token slot and its output continues into the next layer.
+
+use crate::config::{ModelConfig, MLP_RATIO};
+use crate::dino::Dino;
+use crate::future::NEW_BLOCK_LAYER_SCALE;
+use crate::layers::{frame_positions, Block, BlockSpec, QkNorm, RopeTables, BLOCK_NORM_EPS};
+use burn::module::{Module, Param};
+use burn::tensor::{Device, Distribution, Tensor, TensorData};
+
+/// ImageNet normalisation (`_resnet_mean`, `_resnet_std`).
+pub const IMAGENET_MEAN: [f32; 3] = [0.485, 0.456, 0.406];
+pub const IMAGENET_STD: [f32; 3] = [0.229, 0.224, 0.225];
+
+#[derive(Module, Debug)]
+pub struct Aggregator {
+    pub patch_embed: Dino,
+    /// `[1, 2, 1, C]`: index 0 for frame 0, index 1 shared by the other frames.
+    pub camera_token: Param<Tensor<4>>,
+    /// `[1, 2, R, C]`, same convention.
+    pub register_token: Param<Tensor<4>>,
+    pub frame_blocks: Vec<Block>,
+    pub global_blocks: Vec<Block>,
+    pub time_blocks: Vec<Block>,
+    pub temporal_layers: [usize; 4],
+    pub num_heads: usize,
+}
+
+/// What the aggregator produces for the heads.
+#[derive(Debug, Clone)]
+pub struct AggregatorOutput {
+    /// `output_list[l] = cat(frame_l, global_l)`, `[B, S, P, 2C]`, only for the layers asked for.
+    pub layers: Vec<(usize, Tensor<4>)>,
+    /// `time_list[t] = cat(global_l, temporal_l)` at the temporal layers, `[B, S, P, 2C]`.
+    pub time_list: Vec<Tensor<4>>,
+    /// `[B, S, 3, H, W]` ImageNet-normalised images (the GS head reads them).
+    pub norm_images: Tensor<5>,
+    /// Index of the first patch token (1 camera + R registers).
+    pub patch_start: usize,
+}
+
+impl AggregatorOutput {
+    pub fn layer(&self, l: usize) -> Tensor<4> {
+        self.layers.iter().find(|(i, _)| *i == l).map(|(_, t)| t.clone()).unwrap_or_else(|| panic!("aggregator layer {l} was not kept"))
+    }
+}
+
+/// ImageNet normalisation of `[B, S, 3, H, W]` images in [0, 1].
+pub fn normalize_images(images: Tensor<5>) -> Tensor<5> {
+    let device = images.device();
+    let v = |a: [f32; 3]| Tensor::<5>::from_data(TensorData::new(a.to_vec(), [1, 1, 3, 1, 1]), &device);
+    (images - v(IMAGENET_MEAN)) / v(IMAGENET_STD)
+}
+
+impl Aggregator {
+    pub fn new(cfg: &ModelConfig, device: &Device) -> Self {
+        let c = cfg.embed_dim;
+        let spec = |rope_layer: bool| BlockSpec {
+            dim: c,
+            num_heads: cfg.num_heads,
+            mlp_ratio: MLP_RATIO,
+            qk_norm: QkNorm::On,
+            norm_eps: BLOCK_NORM_EPS,
+            layer_scale_init: if rope_layer { 0.01 } else { NEW_BLOCK_LAYER_SCALE },
+        };
+        let tiny = Distribution::Normal(0.0, 1e-6);
+        Aggregator {
+            patch_embed: Dino::new(&cfg.dino, cfg.patch_size, cfg.num_register_tokens, device),
+            camera_token: Param::from_tensor(Tensor::random([1, 2, 1, c], tiny, device)),
+            register_token: Param::from_tensor(Tensor::random([1, 2, cfg.num_register_tokens, c], tiny, device)),
+            frame_blocks: (0..cfg.depth).map(|_| Block::new(spec(true), device)).collect(),
+            global_blocks: (0..cfg.depth).map(|_| Block::new(spec(true), device)).collect(),
+            time_blocks: (0..cfg.temporal_layers.len()).map(|_| Block::new(spec(false), device)).collect(),
+            temporal_layers: cfg.temporal_layers,
+            num_heads: cfg.num_heads,
+        }
+    }
+
+    /// Special tokens for S frames: frame 0 takes index 0, the others index 1. `[S, n, C]`.
+    fn special(&self, token: &Param<Tensor<4>>, s: usize) -> Tensor<3> {
+        let [_, _, n, c] = token.dims();
+        let t = token.val();
+        let first = t.clone().slice([0..1, 0..1, 0..n, 0..c]).reshape([1, n, c]);
+        let rest = t.slice([0..1, 1..2, 0..n, 0..c]).reshape([1, n, c]).expand([s - 1, n, c]);
+        Tensor::cat(vec![first, rest], 0)
+    }
+
+    /// `images: [B, S, 3, H, W]` in [0, 1]; `keep` lists the layers whose `output_list` entry
+    /// is returned (the DPT taps and the last layer).
+    pub fn forward(&self, images: Tensor<5>, keep: &[usize]) -> AggregatorOutput {
+        let [b, s, _, h, w] = images.dims();
+        let norm_images = normalize_images(images);
+        let patch = self.patch_embed.patch_size;
+        let (rows, cols) = (h / patch, w / patch);
+        let dino = self.patch_embed.forward(norm_images.clone().reshape([b * s, 3, h, w]));
+        let patches = dino.patch_tokens;
+        let c = patches.dims()[2];
+        let cam = self.special(&self.camera_token, s);
+        let reg = self.special(&self.register_token, s);
+        let special = Tensor::cat(vec![cam, reg], 1);
+        let n_special = special.dims()[1];
+        let special = special.unsqueeze::<4>().expand([b, s, n_special, c]).reshape([b * s, n_special, c]);
+        let mut x = Tensor::cat(vec![special, patches], 1);
+        let p = x.dims()[1];
+
+        let device = x.device();
+        let head_dim = c / self.num_heads;
+        let frame_pos = frame_positions(n_special, rows, cols);
+        let rope_frame = RopeTables::new(&vec![frame_pos.clone(); b * s], head_dim, &device);
+        let global_pos: Vec<[i64; 2]> = (0..s).flat_map(|_| frame_pos.iter().copied()).collect();
+        let rope_global = RopeTables::new(&vec![global_pos; b], head_dim, &device);
+
+        let mut layers = Vec::new();
+        let mut time_list = Vec::new();
+        for l in 0..self.frame_blocks.len() {
+            let f = self.frame_blocks[l].forward(x.reshape([b * s, p, c]), Some(&rope_frame));
+            let g = self.global_blocks[l].forward(f.clone().reshape([b, s * p, c]), Some(&rope_global));
+            x = g.clone().reshape([b * s, p, c]);
+            if let Some(t) = self.temporal_layers.iter().position(|&tl| tl == l) {
+                // [B, S, P, C] -> [B*P, S, C]: a sequence over time for each token slot.
+                let seq = g.clone().reshape([b, s, p, c]).swap_dims(1, 2).reshape([b * p, s, c]);
+                let y = self.time_blocks[t].forward(seq, None).reshape([b, p, s, c]).swap_dims(1, 2);
+                time_list.push(Tensor::cat(vec![g.clone().reshape([b, s, p, c]), y.clone()], 3));
+                x = y.reshape([b * s, p, c]);
+            }
+            if keep.contains(&l) {
+                layers.push((l, Tensor::cat(vec![f.reshape([b, s, p, c]), g.reshape([b, s, p, c])], 3)));
+            }
+        }
+        AggregatorOutput { layers, time_list, norm_images, patch_start: n_special }
+    }
+}

@@ -1,0 +1,110 @@
+//! Resampling as PyTorch does it, written out as explicit weight matrices.
+//!
+//! * Antialiased bicubic (`F.interpolate(mode="bicubic", antialias=True, align_corners=False)`),
+//!   used on the DINO pos-embed: separable, PIL-style, cubic kernel with `a = -0.5`, support
+//!   widened by the scale when downsampling.
+//! * Bilinear with `align_corners=True`, used throughout the DPT heads.
+
+use burn::tensor::{Device, Tensor, TensorData};
+
+/// Cubic convolution coefficient of the antialiased kernel (PIL uses -0.5).
+pub const AA_CUBIC_A: f64 = -0.5;
+
+fn cubic(x: f64) -> f64 {
+    let a = AA_CUBIC_A;
+    let x = x.abs();
+    if x < 1.0 {
+        ((a + 2.0) * x - (a + 3.0)) * x * x + 1.0
+    } else if x < 2.0 {
+        (((x - 5.0) * x + 8.0) * x - 4.0) * a
+    } else {
+        0.0
+    }
+}
+
+/// `[out, in]` row-stochastic weights of antialiased bicubic resampling along one axis.
+pub fn aa_bicubic_weights(input: usize, output: usize) -> Vec<f64> {
+    let scale = input as f64 / output as f64;
+    // Downsampling widens the kernel by the scale (antialiasing); upsampling keeps it.
+    let (support, inv) = if scale >= 1.0 { (2.0 * scale, 1.0 / scale) } else { (2.0, 1.0) };
+    let mut w = vec![0.0; output * input];
+    for i in 0..output {
+        let center = scale * (i as f64 + 0.5);
+        // Truncation toward zero, as the reference's integer cast.
+        let xmin = ((center - support + 0.5) as i64).max(0) as usize;
+        let xmax = ((center + support + 0.5) as i64).min(input as i64) as usize;
+        let taps: Vec<f64> = (xmin..xmax).map(|j| cubic((j as f64 - center + 0.5) * inv)).collect();
+        let total: f64 = taps.iter().sum();
+        for (k, t) in taps.iter().enumerate() {
+            w[i * input + xmin + k] = if total != 0.0 { t / total } else { 0.0 };
+        }
+    }
+    w
+}
+
+/// `[out, in]` weights of bilinear resampling with `align_corners=True`.
+pub fn bilinear_align_corners_weights(input: usize, output: usize) -> Vec<f64> {
+    let mut w = vec![0.0; output * input];
+    for i in 0..output {
+        let src = if output > 1 { i as f64 * (input as f64 - 1.0) / (output as f64 - 1.0) } else { 0.0 };
+        let lo = (src.floor() as usize).min(input - 1);
+        let hi = (lo + 1).min(input - 1);
+        let frac = src - lo as f64;
+        w[i * input + lo] += 1.0 - frac;
+        w[i * input + hi] += frac;
+    }
+    w
+}
+
+fn matrix(w: Vec<f64>, rows: usize, cols: usize, device: &Device) -> Tensor<2> {
+    let w: Vec<f32> = w.into_iter().map(|v| v as f32).collect();
+    Tensor::from_data(TensorData::new(w, [rows, cols]), device)
+}
+
+/// Applies separable row/column weights to `x: [N, C, H, W]` → `[N, C, h, w]`.
+pub fn resample_separable(x: Tensor<4>, w_rows: Vec<f64>, w_cols: Vec<f64>, out_h: usize, out_w: usize) -> Tensor<4> {
+    let [n, c, h, w] = x.dims();
+    let device = x.device();
+    let wr = matrix(w_rows, out_h, h, &device);
+    let wc = matrix(w_cols, out_w, w, &device);
+    // Columns: [N*C*H, W] @ [W, w].
+    let x = x.reshape([n * c * h, w]).matmul(wc.transpose()).reshape([n * c, h, out_w]);
+    // Rows: [h, H] @ [N*C, H, w] (broadcast over N*C).
+    let x = wr.unsqueeze::<3>().expand([n * c, out_h, h]).matmul(x);
+    x.reshape([n, c, out_h, out_w])
+}
+
+/// Bilinear (`align_corners=True`) resize of `[N, C, H, W]` to `[N, C, h, w]`.
+pub fn bilinear_align_corners(x: Tensor<4>, out_h: usize, out_w: usize) -> Tensor<4> {
+    let [_, _, h, w] = x.dims();
+    resample_separable(x, bilinear_align_corners_weights(h, out_h), bilinear_align_corners_weights(w, out_w), out_h, out_w)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Guards the antialiased bicubic kernel against the reference rows quoted in the spec
+    /// (37 → 25, the paper's pos-embed resize).
+    #[test]
+    fn aa_bicubic_rows_match_reference_values() {
+        let w = aa_bicubic_weights(37, 25);
+        let row = |i: usize| &w[i * 37..(i + 1) * 37];
+        let close = |got: &[f64], want: &[f64]| got.iter().zip(want).all(|(g, w)| (g - w).abs() < 1e-6);
+        assert!(close(&row(0)[0..4], &[0.665034, 0.384516, -0.043966, -0.005583]), "{:?}", &row(0)[0..4]);
+        assert!(close(&row(1)[0..5], &[-0.038247, 0.390445, 0.618682, 0.067460, -0.038340]));
+        assert!(close(&row(12)[16..21], &[-0.049445, 0.214973, 0.668943, 0.214973, -0.049445]));
+        // Scale 1 is the identity.
+        let id = aa_bicubic_weights(37, 37);
+        assert!((0..37).all(|i| (id[i * 37 + i] - 1.0).abs() < 1e-12));
+    }
+
+    /// Guards align_corners=True: end points map exactly onto end points.
+    #[test]
+    fn bilinear_align_corners_end_points() {
+        let w = bilinear_align_corners_weights(4, 7);
+        assert_eq!(w[0], 1.0);
+        assert_eq!(w[6 * 4 + 3], 1.0);
+        assert!((w[3 * 4 + 1] - 0.5).abs() < 1e-12 && (w[3 * 4 + 2] - 0.5).abs() < 1e-12);
+    }
+}
