@@ -45,14 +45,19 @@ pub struct AggregatorOutput {
 
 impl AggregatorOutput {
     pub fn layer(&self, l: usize) -> Tensor<4> {
-        self.layers.iter().find(|(i, _)| *i == l).map(|(_, t)| t.clone()).unwrap_or_else(|| panic!("aggregator layer {l} was not kept"))
+        self.layers
+            .iter()
+            .find(|(i, _)| *i == l)
+            .map(|(_, t)| t.clone())
+            .unwrap_or_else(|| panic!("aggregator layer {l} was not kept"))
     }
 }
 
 /// ImageNet normalisation of `[B, S, 3, H, W]` images in [0, 1].
 pub fn normalize_images(images: Tensor<5>) -> Tensor<5> {
     let device = images.device();
-    let v = |a: [f32; 3]| Tensor::<5>::from_data(TensorData::new(a.to_vec(), [1, 1, 3, 1, 1]), &device);
+    let v =
+        |a: [f32; 3]| Tensor::<5>::from_data(TensorData::new(a.to_vec(), [1, 1, 3, 1, 1]), &device);
     (images - v(IMAGENET_MEAN)) / v(IMAGENET_STD)
 }
 
@@ -65,16 +70,30 @@ impl Aggregator {
             mlp_ratio: MLP_RATIO,
             qk_norm: QkNorm::On,
             norm_eps: BLOCK_NORM_EPS,
-            layer_scale_init: if rope_layer { 0.01 } else { NEW_BLOCK_LAYER_SCALE },
+            layer_scale_init: if rope_layer {
+                0.01
+            } else {
+                NEW_BLOCK_LAYER_SCALE
+            },
         };
         let tiny = Distribution::Normal(0.0, 1e-6);
         Aggregator {
             patch_embed: Dino::new(&cfg.dino, cfg.patch_size, cfg.num_register_tokens, device),
             camera_token: Param::from_tensor(Tensor::random([1, 2, 1, c], tiny, device)),
-            register_token: Param::from_tensor(Tensor::random([1, 2, cfg.num_register_tokens, c], tiny, device)),
-            frame_blocks: (0..cfg.depth).map(|_| Block::new(spec(true), device)).collect(),
-            global_blocks: (0..cfg.depth).map(|_| Block::new(spec(true), device)).collect(),
-            time_blocks: (0..cfg.temporal_layers.len()).map(|_| Block::new(spec(false), device)).collect(),
+            register_token: Param::from_tensor(Tensor::random(
+                [1, 2, cfg.num_register_tokens, c],
+                tiny,
+                device,
+            )),
+            frame_blocks: (0..cfg.depth)
+                .map(|_| Block::new(spec(true), device))
+                .collect(),
+            global_blocks: (0..cfg.depth)
+                .map(|_| Block::new(spec(true), device))
+                .collect(),
+            time_blocks: (0..cfg.temporal_layers.len())
+                .map(|_| Block::new(spec(false), device))
+                .collect(),
             temporal_layers: cfg.temporal_layers,
             num_heads: cfg.num_heads,
         }
@@ -85,7 +104,10 @@ impl Aggregator {
         let [_, _, n, c] = token.dims();
         let t = token.val();
         let first = t.clone().slice([0..1, 0..1, 0..n, 0..c]).reshape([1, n, c]);
-        let rest = t.slice([0..1, 1..2, 0..n, 0..c]).reshape([1, n, c]).expand([s - 1, n, c]);
+        let rest = t
+            .slice([0..1, 1..2, 0..n, 0..c])
+            .reshape([1, n, c])
+            .expand([s - 1, n, c]);
         Tensor::cat(vec![first, rest], 0)
     }
 
@@ -96,14 +118,19 @@ impl Aggregator {
         let norm_images = normalize_images(images);
         let patch = self.patch_embed.patch_size;
         let (rows, cols) = (h / patch, w / patch);
-        let dino = self.patch_embed.forward(norm_images.clone().reshape([b * s, 3, h, w]));
+        let dino = self
+            .patch_embed
+            .forward(norm_images.clone().reshape([b * s, 3, h, w]));
         let patches = dino.patch_tokens;
         let c = patches.dims()[2];
         let cam = self.special(&self.camera_token, s);
         let reg = self.special(&self.register_token, s);
         let special = Tensor::cat(vec![cam, reg], 1);
         let n_special = special.dims()[1];
-        let special = special.unsqueeze::<4>().expand([b, s, n_special, c]).reshape([b * s, n_special, c]);
+        let special = special
+            .unsqueeze::<4>()
+            .expand([b, s, n_special, c])
+            .reshape([b * s, n_special, c]);
         let mut x = Tensor::cat(vec![special, patches], 1);
         let p = x.dims()[1];
 
@@ -118,19 +145,38 @@ impl Aggregator {
         let mut time_list = Vec::new();
         for l in 0..self.frame_blocks.len() {
             let f = self.frame_blocks[l].forward(x.reshape([b * s, p, c]), Some(&rope_frame));
-            let g = self.global_blocks[l].forward(f.clone().reshape([b, s * p, c]), Some(&rope_global));
+            let g =
+                self.global_blocks[l].forward(f.clone().reshape([b, s * p, c]), Some(&rope_global));
             x = g.clone().reshape([b * s, p, c]);
             if let Some(t) = self.temporal_layers.iter().position(|&tl| tl == l) {
                 // [B, S, P, C] -> [B*P, S, C]: a sequence over time for each token slot.
-                let seq = g.clone().reshape([b, s, p, c]).swap_dims(1, 2).reshape([b * p, s, c]);
-                let y = self.time_blocks[t].forward(seq, None).reshape([b, p, s, c]).swap_dims(1, 2);
-                time_list.push(Tensor::cat(vec![g.clone().reshape([b, s, p, c]), y.clone()], 3));
+                let seq = g
+                    .clone()
+                    .reshape([b, s, p, c])
+                    .swap_dims(1, 2)
+                    .reshape([b * p, s, c]);
+                let y = self.time_blocks[t]
+                    .forward(seq, None)
+                    .reshape([b, p, s, c])
+                    .swap_dims(1, 2);
+                time_list.push(Tensor::cat(
+                    vec![g.clone().reshape([b, s, p, c]), y.clone()],
+                    3,
+                ));
                 x = y.reshape([b * s, p, c]);
             }
             if keep.contains(&l) {
-                layers.push((l, Tensor::cat(vec![f.reshape([b, s, p, c]), g.reshape([b, s, p, c])], 3)));
+                layers.push((
+                    l,
+                    Tensor::cat(vec![f.reshape([b, s, p, c]), g.reshape([b, s, p, c])], 3),
+                ));
             }
         }
-        AggregatorOutput { layers, time_list, norm_images, patch_start: n_special }
+        AggregatorOutput {
+            layers,
+            time_list,
+            norm_images,
+            patch_start: n_special,
+        }
     }
 }

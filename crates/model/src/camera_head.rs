@@ -33,11 +33,24 @@ pub fn plain_layer_norm(x: Tensor<3>, eps: f64) -> Tensor<3> {
 
 impl CameraHead {
     pub fn new(dim: usize, num_heads: usize, device: &Device) -> Self {
-        let norm = || LayerNormConfig::new(dim).with_epsilon(BLOCK_NORM_EPS).init(device);
-        let spec = BlockSpec { dim, num_heads, mlp_ratio: MLP_RATIO, qk_norm: QkNorm::Off, norm_eps: BLOCK_NORM_EPS, layer_scale_init: 0.01 };
+        let norm = || {
+            LayerNormConfig::new(dim)
+                .with_epsilon(BLOCK_NORM_EPS)
+                .init(device)
+        };
+        let spec = BlockSpec {
+            dim,
+            num_heads,
+            mlp_ratio: MLP_RATIO,
+            qk_norm: QkNorm::Off,
+            norm_eps: BLOCK_NORM_EPS,
+            layer_scale_init: 0.01,
+        };
         CameraHead {
             token_norm: norm(),
-            trunk: (0..CAMERA_TRUNK_DEPTH).map(|_| Block::new(spec, device)).collect(),
+            trunk: (0..CAMERA_TRUNK_DEPTH)
+                .map(|_| Block::new(spec, device))
+                .collect(),
             trunk_norm: norm(),
             empty_pose_tokens: Param::from_tensor(Tensor::zeros([1, 1, POSE_ENC_DIM], device)),
             embed_pose: LinearConfig::new(POSE_ENC_DIM, dim).init(device),
@@ -58,11 +71,17 @@ impl CameraHead {
             // The previous (pre-activation) estimate conditions the next; detached as in VGGT
             // training so each iteration learns a residual.
             let u = match &acc {
-                None => self.embed_pose.forward(self.empty_pose_tokens.val().expand([b, n, POSE_ENC_DIM])),
+                None => self
+                    .embed_pose
+                    .forward(self.empty_pose_tokens.val().expand([b, n, POSE_ENC_DIM])),
                 Some(e) => self.embed_pose.forward(e.clone().detach()),
             };
             let modulation = self.pose_ln_modulation.forward(silu(u));
-            let chunk = |i: usize| modulation.clone().slice([0..b, 0..n, i * dim..(i + 1) * dim]);
+            let chunk = |i: usize| {
+                modulation
+                    .clone()
+                    .slice([0..b, 0..n, i * dim..(i + 1) * dim])
+            };
             let (shift, scale, gate) = (chunk(0), chunk(1), chunk(2));
             let m = gate * (tau_norm.clone() * scale.add_scalar(1.0) + shift) + tau.clone();
             let y = self.trunk.iter().fold(m, |x, blk| blk.forward(x, None));

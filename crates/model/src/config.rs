@@ -74,8 +74,16 @@ impl ModelConfig {
             patch_size: 14,
             num_register_tokens: 4,
             temporal_layers: [4, 11, 17, 23],
-            dino: DinoConfig { embed_dim: 1024, depth: 24, num_heads: 16, img_size: 518 },
-            dpt: DptConfig { features: 256, out_channels: [256, 512, 1024, 1024] },
+            dino: DinoConfig {
+                embed_dim: 1024,
+                depth: 24,
+                num_heads: 16,
+                img_size: 518,
+            },
+            dpt: DptConfig {
+                features: 256,
+                out_channels: [256, 512, 1024, 1024],
+            },
             camera_heads: 16,
             future_blocks: 2,
             future_iterations: 4,
@@ -93,8 +101,16 @@ impl ModelConfig {
         ModelConfig {
             embed_dim: 64,
             num_heads: 4,
-            dino: DinoConfig { embed_dim: 64, depth: 2, num_heads: 4, img_size: 518 },
-            dpt: DptConfig { features: 32, out_channels: [16, 32, 64, 64] },
+            dino: DinoConfig {
+                embed_dim: 64,
+                depth: 2,
+                num_heads: 4,
+                img_size: 518,
+            },
+            dpt: DptConfig {
+                features: 32,
+                out_channels: [16, 32, 64, 64],
+            },
             image_size: [56, 84],
             ..Self::paper()
         }
@@ -105,7 +121,9 @@ impl ModelConfig {
         match name {
             "paper" => Ok(Self::paper()),
             "tiny" => Ok(Self::tiny()),
-            other => Err(ConfigError(format!("unknown model preset {other:?}; use \"paper\" or \"tiny\""))),
+            other => Err(ConfigError(format!(
+                "unknown model preset {other:?}; use \"paper\" or \"tiny\""
+            ))),
         }
     }
 
@@ -115,7 +133,10 @@ impl ModelConfig {
 
     /// Patch grid `(rows, cols)`.
     pub fn patch_grid(&self) -> (usize, usize) {
-        (self.image_size[0] / self.patch_size, self.image_size[1] / self.patch_size)
+        (
+            self.image_size[0] / self.patch_size,
+            self.image_size[1] / self.patch_size,
+        )
     }
 
     /// Tokens per frame: camera + registers + patches.
@@ -129,7 +150,9 @@ impl ModelConfig {
         let err = |m: String| Err(ConfigError(m));
         let divides = |name: &str, dim: usize, heads: usize| -> Result<(), ConfigError> {
             if heads == 0 || dim % heads != 0 {
-                return Err(ConfigError(format!("{name}: {heads} heads do not divide width {dim}")));
+                return Err(ConfigError(format!(
+                    "{name}: {heads} heads do not divide width {dim}"
+                )));
             }
             Ok(())
         };
@@ -138,30 +161,48 @@ impl ModelConfig {
         divides("camera_heads", 2 * self.embed_dim, self.camera_heads)?;
         divides("future_heads", 2 * self.embed_dim, self.future_heads)?;
         if self.dino.embed_dim != self.embed_dim {
-            return err(format!("dino.embed_dim ({}) must equal embed_dim ({})", self.dino.embed_dim, self.embed_dim));
+            return err(format!(
+                "dino.embed_dim ({}) must equal embed_dim ({})",
+                self.dino.embed_dim, self.embed_dim
+            ));
         }
         // 2D RoPE splits each head in a y half and an x half, each rotated in pairs.
         if (self.embed_dim / self.num_heads) % 4 != 0 {
-            return err(format!("head dim {} (embed_dim / num_heads) must be a multiple of 4 for 2D RoPE", self.embed_dim / self.num_heads));
+            return err(format!(
+                "head dim {} (embed_dim / num_heads) must be a multiple of 4 for 2D RoPE",
+                self.embed_dim / self.num_heads
+            ));
         }
         if self.patch_size == 0 {
             return err("patch_size must be > 0".into());
         }
         for (axis, v) in ["height", "width"].iter().zip(self.image_size) {
             if v == 0 || v % self.patch_size != 0 {
-                return err(format!("image_size {axis} {v} is not a positive multiple of patch_size {}", self.patch_size));
+                return err(format!(
+                    "image_size {axis} {v} is not a positive multiple of patch_size {}",
+                    self.patch_size
+                ));
             }
         }
         if self.dino.img_size % self.patch_size != 0 {
-            return err(format!("dino.img_size {} is not a multiple of patch_size {}", self.dino.img_size, self.patch_size));
+            return err(format!(
+                "dino.img_size {} is not a multiple of patch_size {}",
+                self.dino.img_size, self.patch_size
+            ));
         }
         let mut prev = None;
         for &l in &self.temporal_layers {
             if l >= self.depth {
-                return err(format!("temporal_layers entry {l} is not below depth {}", self.depth));
+                return err(format!(
+                    "temporal_layers entry {l} is not below depth {}",
+                    self.depth
+                ));
             }
             if prev.is_some_and(|p| l <= p) {
-                return err(format!("temporal_layers {:?} must be strictly increasing", self.temporal_layers));
+                return err(format!(
+                    "temporal_layers {:?} must be strictly increasing",
+                    self.temporal_layers
+                ));
             }
             prev = Some(l);
         }
@@ -172,10 +213,16 @@ impl ModelConfig {
             return err("future_frames, future_blocks and future_iterations must be >= 1".into());
         }
         if self.dpt.features == 0 || self.dpt.out_channels.contains(&0) {
-            return err(format!("dpt widths must be > 0, got features {} out_channels {:?}", self.dpt.features, self.dpt.out_channels));
+            return err(format!(
+                "dpt widths must be > 0, got features {} out_channels {:?}",
+                self.dpt.features, self.dpt.out_channels
+            ));
         }
         if !(self.gaussian_scale_min > 0.0 && self.gaussian_scale_max > self.gaussian_scale_min) {
-            return err(format!("need 0 < gaussian_scale_min < gaussian_scale_max, got {} and {}", self.gaussian_scale_min, self.gaussian_scale_max));
+            return err(format!(
+                "need 0 < gaussian_scale_min < gaussian_scale_max, got {} and {}",
+                self.gaussian_scale_min, self.gaussian_scale_max
+            ));
         }
         Ok(())
     }
@@ -214,7 +261,10 @@ mod tests {
         bad(|c| c.context_frames = 1, "context_frames");
         bad(|c| c.camera_heads = 7, "camera_heads");
         bad(|c| c.gaussian_scale_min = 0.0, "gaussian_scale_min");
-        assert!(ModelConfig::preset("huge").unwrap_err().to_string().contains("huge"));
+        assert!(ModelConfig::preset("huge")
+            .unwrap_err()
+            .to_string()
+            .contains("huge"));
     }
 
     /// Guards `deny_unknown_fields`: a typo in a TOML/JSON model section is an error naming it.
@@ -222,7 +272,9 @@ mod tests {
     fn unknown_field_is_rejected() {
         let mut v = serde_json::to_value(ModelConfig::tiny()).unwrap();
         v["embed_dimm"] = serde_json::json!(3);
-        let e = serde_json::from_value::<ModelConfig>(v).unwrap_err().to_string();
+        let e = serde_json::from_value::<ModelConfig>(v)
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("embed_dimm"), "{e}");
     }
 }

@@ -51,16 +51,33 @@ impl Dino {
     pub fn new(cfg: &DinoConfig, patch_size: usize, num_registers: usize, device: &Device) -> Self {
         let c = cfg.embed_dim;
         let grid = cfg.img_size / patch_size;
-        let spec = BlockSpec { dim: c, num_heads: cfg.num_heads, mlp_ratio: MLP_RATIO, qk_norm: QkNorm::Off, norm_eps: DINO_NORM_EPS, layer_scale_init: DINO_LAYER_SCALE };
+        let spec = BlockSpec {
+            dim: c,
+            num_heads: cfg.num_heads,
+            mlp_ratio: MLP_RATIO,
+            qk_norm: QkNorm::Off,
+            norm_eps: DINO_NORM_EPS,
+            layer_scale_init: DINO_LAYER_SCALE,
+        };
         let small = Distribution::Normal(0.0, 0.02);
         Dino {
             cls_token: Param::from_tensor(Tensor::random([1, 1, c], small, device)),
             pos_embed: Param::from_tensor(Tensor::random([1, 1 + grid * grid, c], small, device)),
-            register_tokens: Param::from_tensor(Tensor::random([1, num_registers, c], small, device)),
+            register_tokens: Param::from_tensor(Tensor::random(
+                [1, num_registers, c],
+                small,
+                device,
+            )),
             mask_token: Param::from_tensor(Tensor::zeros([1, c], device)),
-            patch_embed: PatchProj { proj: Conv2dConfig::new([3, c], [patch_size, patch_size]).with_stride([patch_size, patch_size]).init(device) },
+            patch_embed: PatchProj {
+                proj: Conv2dConfig::new([3, c], [patch_size, patch_size])
+                    .with_stride([patch_size, patch_size])
+                    .init(device),
+            },
             blocks: (0..cfg.depth).map(|_| Block::new(spec, device)).collect(),
-            norm: LayerNormConfig::new(c).with_epsilon(DINO_NORM_EPS).init(device),
+            norm: LayerNormConfig::new(c)
+                .with_epsilon(DINO_NORM_EPS)
+                .init(device),
             patch_size,
         }
     }
@@ -75,8 +92,17 @@ impl Dino {
             return pe;
         }
         let cls = pe.clone().slice([0..1, 0..1, 0..c]);
-        let grid = pe.slice([0..1, 1..n, 0..c]).reshape([1, m, m, c]).permute([0, 3, 1, 2]);
-        let resized = resample_separable(grid, aa_bicubic_weights(m, rows), aa_bicubic_weights(m, cols), rows, cols);
+        let grid = pe
+            .slice([0..1, 1..n, 0..c])
+            .reshape([1, m, m, c])
+            .permute([0, 3, 1, 2]);
+        let resized = resample_separable(
+            grid,
+            aa_bicubic_weights(m, rows),
+            aa_bicubic_weights(m, cols),
+            rows,
+            cols,
+        );
         let patches = resized.permute([0, 2, 3, 1]).reshape([1, rows * cols, c]);
         Tensor::cat(vec![cls, patches], 1)
     }
@@ -93,7 +119,14 @@ impl Dino {
         let r = self.register_tokens.dims()[1];
         let regs = self.register_tokens.val().expand([b, r, c]);
         let n = x.dims()[1];
-        let x = Tensor::cat(vec![x.clone().slice([0..b, 0..1, 0..c]), regs, x.slice([0..b, 1..n, 0..c])], 1);
+        let x = Tensor::cat(
+            vec![
+                x.clone().slice([0..b, 0..1, 0..c]),
+                regs,
+                x.slice([0..b, 1..n, 0..c]),
+            ],
+            1,
+        );
         let prenorm = self.blocks.iter().fold(x, |x, blk| blk.forward(x, None));
         let normed = self.norm.forward(prenorm.clone());
         let total = normed.dims()[1];

@@ -41,7 +41,10 @@ pub struct TimeEmbedding {
 
 impl TimeEmbedding {
     pub fn new(width: usize, device: &Device) -> Self {
-        TimeEmbedding { fc1: LinearConfig::new(TIME_SINUSOID_DIM, width).init(device), fc2: LinearConfig::new(width, width).init(device) }
+        TimeEmbedding {
+            fc1: LinearConfig::new(TIME_SINUSOID_DIM, width).init(device),
+            fc2: LinearConfig::new(width, width).init(device),
+        }
     }
 
     pub fn forward(&self, x: Tensor<3>) -> Tensor<3> {
@@ -71,10 +74,23 @@ pub struct FuturePose {
 impl FuturePose {
     pub fn new(cfg: &ModelConfig, device: &Device) -> Self {
         let width = 2 * cfg.embed_dim;
-        let spec = BlockSpec { dim: width, num_heads: cfg.future_heads, mlp_ratio: MLP_RATIO, qk_norm: QkNorm::Off, norm_eps: BLOCK_NORM_EPS, layer_scale_init: NEW_BLOCK_LAYER_SCALE };
+        let spec = BlockSpec {
+            dim: width,
+            num_heads: cfg.future_heads,
+            mlp_ratio: MLP_RATIO,
+            qk_norm: QkNorm::Off,
+            norm_eps: BLOCK_NORM_EPS,
+            layer_scale_init: NEW_BLOCK_LAYER_SCALE,
+        };
         FuturePose {
-            extra_token_offset: Param::from_tensor(Tensor::random([1, cfg.future_frames, width], Distribution::Normal(0.0, 1.0), device)),
-            extra_blocks: (0..cfg.future_blocks).map(|_| Block::new(spec, device)).collect(),
+            extra_token_offset: Param::from_tensor(Tensor::random(
+                [1, cfg.future_frames, width],
+                Distribution::Normal(0.0, 1.0),
+                device,
+            )),
+            extra_blocks: (0..cfg.future_blocks)
+                .map(|_| Block::new(spec, device))
+                .collect(),
             time_embedding: TimeEmbedding::new(width, device),
             iterations: cfg.future_iterations,
         }
@@ -83,7 +99,13 @@ impl FuturePose {
     /// Time tokens `[1, N, 2C]` for frames `0..N` before refinement (`time_mlp`).
     pub fn time_tokens(&self, num_frames: usize, device: &Device) -> Tensor<3> {
         let positions: Vec<f64> = (0..num_frames).map(|t| t as f64).collect();
-        let s = Tensor::from_data(TensorData::new(sinusoid(&positions, TIME_SINUSOID_DIM), [1, num_frames, TIME_SINUSOID_DIM]), device);
+        let s = Tensor::from_data(
+            TensorData::new(
+                sinusoid(&positions, TIME_SINUSOID_DIM),
+                [1, num_frames, TIME_SINUSOID_DIM],
+            ),
+            device,
+        );
         self.time_embedding.forward(s)
     }
 
@@ -106,7 +128,10 @@ impl FuturePose {
         }
         let pairs = s.reshape([b, n, 2, w]);
         FutureTokens {
-            camera: pairs.clone().slice([0..b, 0..n, 0..1, 0..w]).reshape([b, n, w]),
+            camera: pairs
+                .clone()
+                .slice([0..b, 0..n, 0..1, 0..w])
+                .reshape([b, n, w]),
             time: pairs.slice([0..b, 0..n, 1..2, 0..w]).reshape([b, n, w]),
         }
     }

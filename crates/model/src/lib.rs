@@ -10,11 +10,13 @@ pub mod layers;
 
 pub use config::{ConfigError, ModelConfig};
 pub use model::Envision4d;
-pub mod weights;
 pub mod aggregator;
 pub mod camera_head;
 pub mod dino;
+pub mod dpt;
 pub mod future;
+pub mod model;
+pub mod motion;
 pub mod pose;
 pub mod resample;
-pub mod model;
+pub mod weights;

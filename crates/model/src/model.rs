@@ -4,7 +4,9 @@
 use crate::aggregator::{Aggregator, AggregatorOutput};
 use crate::camera_head::CameraHead;
 use crate::config::ModelConfig;
+use crate::dpt::{depth_activation, DptHead, DptKind};
 use crate::future::{FuturePose, FutureTokens};
+use crate::motion::lift;
 use crate::pose::pose_encoding_to_extri_intri;
 use burn::module::Module;
 use burn::tensor::{Device, Tensor};
@@ -15,6 +17,48 @@ pub struct Envision4d {
     pub camera_head: CameraHead,
     /// `extra_token_offset`, `extra_blocks`, `time_embedding` of the release.
     pub future: FuturePose,
+    pub depth_head: DptHead,
+    pub gs_head: DptHead,
+    pub motion_head: DptHead,
+    pub temporal_layers: [usize; 4],
+}
+
+/// Which heads a forward pass runs ("leave out what a command does not need").
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Heads {
+    pub depth: bool,
+    pub gaussians: bool,
+    pub motion: bool,
+}
+
+impl Heads {
+    pub const ALL: Heads = Heads {
+        depth: true,
+        gaussians: true,
+        motion: true,
+    };
+    /// Poses only (the backbone and camera head).
+    pub const NONE: Heads = Heads {
+        depth: false,
+        gaussians: false,
+        motion: false,
+    };
+}
+
+/// Raw network predictions, named as the fixtures and `--export-predictions` name them.
+#[derive(Debug, Clone)]
+pub struct Predictions {
+    pub backbone: BackboneOutput,
+    /// `[B, T_c, H, W, 1]` (exp).
+    pub depth: Option<Tensor<5>>,
+    /// `[B, T_c, H, W]` (1 + exp).
+    pub depth_conf: Option<Tensor<4>>,
+    /// `[B, T_c, H, W, 11]` raw Gaussian parameters.
+    pub gaussians: Option<Tensor<5>>,
+    /// `[B, T_c·(N-1), H, W, 3]` raw displacements, source-major.
+    pub motion_enc: Option<Tensor<5>>,
+    /// The four lifted token maps fed to the motion head, `[B, T_c·(N-1), hw, 2C]`.
+    pub motion_tokens: Option<[Tensor<4>; 4]>,
 }
 
 /// Backbone outputs: tokens for the heads and the predicted cameras.
@@ -38,10 +82,66 @@ impl BackboneOutput {
 
 impl Envision4d {
     pub fn new(cfg: &ModelConfig, device: &Device) -> Self {
+        let dpt = |kind| DptHead::new(kind, 2 * cfg.embed_dim, &cfg.dpt, cfg.patch_size, device);
         Envision4d {
             aggregator: Aggregator::new(cfg, device),
             camera_head: CameraHead::new(2 * cfg.embed_dim, cfg.camera_heads, device),
             future: FuturePose::new(cfg, device),
+            depth_head: dpt(DptKind::Depth),
+            gs_head: dpt(DptKind::Gaussians),
+            motion_head: dpt(DptKind::Motion),
+            temporal_layers: cfg.temporal_layers,
+        }
+    }
+
+    /// The full forward pass on context images `[B, T_c, 3, H, W]` in [0, 1].
+    pub fn forward(&self, images: Tensor<5>, heads: Heads) -> Predictions {
+        let [_, _, _, h, w] = images.dims();
+        let taps_idx = self.temporal_layers;
+        let backbone = self.backbone(images, &taps_idx);
+        let agg = &backbone.aggregator;
+        let taps: [Tensor<4>; 4] = taps_idx.map(|l| agg.layer(l));
+        let (depth, depth_conf) = if heads.depth {
+            let (d, c) =
+                depth_activation(
+                    self.depth_head
+                        .forward_raw(&taps, agg.patch_start, [h, w], None),
+                );
+            (Some(d), Some(c))
+        } else {
+            (None, None)
+        };
+        let gaussians = heads.gaussians.then(|| {
+            self.gs_head.forward_raw(
+                &taps,
+                agg.patch_start,
+                [h, w],
+                Some(agg.norm_images.clone()),
+            )
+        });
+        let (motion_enc, motion_tokens) = if heads.motion {
+            let lifted: [Tensor<4>; 4] = std::array::from_fn(|t| {
+                lift(
+                    agg.time_list[t].clone(),
+                    backbone.tokens.time.clone(),
+                    agg.patch_start,
+                )
+            });
+            // Lifted maps carry patch tokens only, so they start at index 0.
+            (
+                Some(self.motion_head.forward_raw(&lifted, 0, [h, w], None)),
+                Some(lifted),
+            )
+        } else {
+            (None, None)
+        };
+        Predictions {
+            backbone,
+            depth,
+            depth_conf,
+            gaussians,
+            motion_enc,
+            motion_tokens,
         }
     }
 
@@ -57,7 +157,14 @@ impl Envision4d {
         let camera_tokens = top.slice([0..b, 0..s, 0..1, 0..c2]).reshape([b, s, c2]);
         let tokens = self.future.forward(camera_tokens);
         let pose_enc_iters = self.camera_head.forward(tokens.camera.clone());
-        let (extrinsics, intrinsics) = pose_encoding_to_extri_intri(pose_enc_iters.last().unwrap().clone(), h, w);
-        BackboneOutput { aggregator: agg, tokens, pose_enc_iters, extrinsics, intrinsics }
+        let (extrinsics, intrinsics) =
+            pose_encoding_to_extri_intri(pose_enc_iters.last().unwrap().clone(), h, w);
+        BackboneOutput {
+            aggregator: agg,
+            tokens,
+            pose_enc_iters,
+            extrinsics,
+            intrinsics,
+        }
     }
 }

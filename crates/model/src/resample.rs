@@ -26,14 +26,20 @@ fn cubic(x: f64) -> f64 {
 pub fn aa_bicubic_weights(input: usize, output: usize) -> Vec<f64> {
     let scale = input as f64 / output as f64;
     // Downsampling widens the kernel by the scale (antialiasing); upsampling keeps it.
-    let (support, inv) = if scale >= 1.0 { (2.0 * scale, 1.0 / scale) } else { (2.0, 1.0) };
+    let (support, inv) = if scale >= 1.0 {
+        (2.0 * scale, 1.0 / scale)
+    } else {
+        (2.0, 1.0)
+    };
     let mut w = vec![0.0; output * input];
     for i in 0..output {
         let center = scale * (i as f64 + 0.5);
         // Truncation toward zero, as the reference's integer cast.
         let xmin = ((center - support + 0.5) as i64).max(0) as usize;
         let xmax = ((center + support + 0.5) as i64).min(input as i64) as usize;
-        let taps: Vec<f64> = (xmin..xmax).map(|j| cubic((j as f64 - center + 0.5) * inv)).collect();
+        let taps: Vec<f64> = (xmin..xmax)
+            .map(|j| cubic((j as f64 - center + 0.5) * inv))
+            .collect();
         let total: f64 = taps.iter().sum();
         for (k, t) in taps.iter().enumerate() {
             w[i * input + xmin + k] = if total != 0.0 { t / total } else { 0.0 };
@@ -46,7 +52,11 @@ pub fn aa_bicubic_weights(input: usize, output: usize) -> Vec<f64> {
 pub fn bilinear_align_corners_weights(input: usize, output: usize) -> Vec<f64> {
     let mut w = vec![0.0; output * input];
     for i in 0..output {
-        let src = if output > 1 { i as f64 * (input as f64 - 1.0) / (output as f64 - 1.0) } else { 0.0 };
+        let src = if output > 1 {
+            i as f64 * (input as f64 - 1.0) / (output as f64 - 1.0)
+        } else {
+            0.0
+        };
         let lo = (src.floor() as usize).min(input - 1);
         let hi = (lo + 1).min(input - 1);
         let frac = src - lo as f64;
@@ -62,13 +72,22 @@ fn matrix(w: Vec<f64>, rows: usize, cols: usize, device: &Device) -> Tensor<2> {
 }
 
 /// Applies separable row/column weights to `x: [N, C, H, W]` → `[N, C, h, w]`.
-pub fn resample_separable(x: Tensor<4>, w_rows: Vec<f64>, w_cols: Vec<f64>, out_h: usize, out_w: usize) -> Tensor<4> {
+pub fn resample_separable(
+    x: Tensor<4>,
+    w_rows: Vec<f64>,
+    w_cols: Vec<f64>,
+    out_h: usize,
+    out_w: usize,
+) -> Tensor<4> {
     let [n, c, h, w] = x.dims();
     let device = x.device();
     let wr = matrix(w_rows, out_h, h, &device);
     let wc = matrix(w_cols, out_w, w, &device);
     // Columns: [N*C*H, W] @ [W, w].
-    let x = x.reshape([n * c * h, w]).matmul(wc.transpose()).reshape([n * c, h, out_w]);
+    let x = x
+        .reshape([n * c * h, w])
+        .matmul(wc.transpose())
+        .reshape([n * c, h, out_w]);
     // Rows: [h, H] @ [N*C, H, w] (broadcast over N*C).
     let x = wr.unsqueeze::<3>().expand([n * c, out_h, h]).matmul(x);
     x.reshape([n, c, out_h, out_w])
@@ -77,7 +96,13 @@ pub fn resample_separable(x: Tensor<4>, w_rows: Vec<f64>, w_cols: Vec<f64>, out_
 /// Bilinear (`align_corners=True`) resize of `[N, C, H, W]` to `[N, C, h, w]`.
 pub fn bilinear_align_corners(x: Tensor<4>, out_h: usize, out_w: usize) -> Tensor<4> {
     let [_, _, h, w] = x.dims();
-    resample_separable(x, bilinear_align_corners_weights(h, out_h), bilinear_align_corners_weights(w, out_w), out_h, out_w)
+    resample_separable(
+        x,
+        bilinear_align_corners_weights(h, out_h),
+        bilinear_align_corners_weights(w, out_w),
+        out_h,
+        out_w,
+    )
 }
 
 #[cfg(test)]
@@ -90,10 +115,21 @@ mod tests {
     fn aa_bicubic_rows_match_reference_values() {
         let w = aa_bicubic_weights(37, 25);
         let row = |i: usize| &w[i * 37..(i + 1) * 37];
-        let close = |got: &[f64], want: &[f64]| got.iter().zip(want).all(|(g, w)| (g - w).abs() < 1e-6);
-        assert!(close(&row(0)[0..4], &[0.665034, 0.384516, -0.043966, -0.005583]), "{:?}", &row(0)[0..4]);
-        assert!(close(&row(1)[0..5], &[-0.038247, 0.390445, 0.618682, 0.067460, -0.038340]));
-        assert!(close(&row(12)[16..21], &[-0.049445, 0.214973, 0.668943, 0.214973, -0.049445]));
+        let close =
+            |got: &[f64], want: &[f64]| got.iter().zip(want).all(|(g, w)| (g - w).abs() < 1e-6);
+        assert!(
+            close(&row(0)[0..4], &[0.665034, 0.384516, -0.043966, -0.005583]),
+            "{:?}",
+            &row(0)[0..4]
+        );
+        assert!(close(
+            &row(1)[0..5],
+            &[-0.038247, 0.390445, 0.618682, 0.067460, -0.038340]
+        ));
+        assert!(close(
+            &row(12)[16..21],
+            &[-0.049445, 0.214973, 0.668943, 0.214973, -0.049445]
+        ));
         // Scale 1 is the identity.
         let id = aa_bicubic_weights(37, 37);
         assert!((0..37).all(|i| (id[i * 37 + i] - 1.0).abs() < 1e-12));

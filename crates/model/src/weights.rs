@@ -7,7 +7,9 @@
 //! Every problem — missing, unexpected or mis-shaped keys — is collected into one error.
 
 use burn::module::Module;
-use burn::store::{ApplyError, KeyRemapper, ModuleSnapshot, PyTorchToBurnAdapter, SafetensorsStore};
+use burn::store::{
+    ApplyError, KeyRemapper, ModuleSnapshot, PyTorchToBurnAdapter, SafetensorsStore,
+};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
@@ -56,7 +58,10 @@ pub struct LoadReport {
 /// our modules name them. Each rule is a regex on the stripped key and its replacement.
 pub const KEY_RENAMES: &[(&str, &str)] = &[
     // The future-pose parameters sit on the release's model root; ours group them.
-    (r"^(extra_token_offset$|extra_blocks\.|time_embedding\.)", "future.${1}"),
+    (
+        r"^(extra_token_offset$|extra_blocks\.|time_embedding\.)",
+        "future.${1}",
+    ),
     (r"(^|\.)poseLN_modulation\.1\.", "${1}pose_ln_modulation."),
     (r"(^|\.)time_embedding\.0\.", "${1}time_embedding.fc1."),
     (r"(^|\.)time_embedding\.2\.", "${1}time_embedding.fc2."),
@@ -66,16 +71,31 @@ pub const KEY_RENAMES: &[(&str, &str)] = &[
     (r"(^|\.)resize_layers\.0\.", "${1}resize0."),
     (r"(^|\.)resize_layers\.1\.", "${1}resize1."),
     (r"(^|\.)resize_layers\.3\.", "${1}resize3."),
+    (r"\.resConfUnit(\d)\.", ".res_conf_unit${1}."),
 ];
 
 /// Our name of an official (prefix-stripped) key.
 pub fn rename_key(key: &str) -> String {
-    static RULES: std::sync::OnceLock<Vec<(regex::Regex, &'static str)>> = std::sync::OnceLock::new();
-    let rules = RULES.get_or_init(|| KEY_RENAMES.iter().map(|(f, t)| (regex::Regex::new(f).expect("valid rename regex"), *t)).collect());
-    rules.iter().fold(key.to_string(), |k, (re, to)| re.replace_all(&k, *to).into_owned())
+    static RULES: std::sync::OnceLock<Vec<(regex::Regex, &'static str)>> =
+        std::sync::OnceLock::new();
+    let rules = RULES.get_or_init(|| {
+        KEY_RENAMES
+            .iter()
+            .map(|(f, t)| (regex::Regex::new(f).expect("valid rename regex"), *t))
+            .collect()
+    });
+    rules.iter().fold(key.to_string(), |k, (re, to)| {
+        re.replace_all(&k, *to).into_owned()
+    })
 }
 
-pub fn load_safetensors<M: Module + ModuleSnapshot>(module: &mut M, path: &Path, prefix: &str, missing: Missing, unexpected: Unexpected) -> Result<LoadReport, LoadError> {
+pub fn load_safetensors<M: Module + ModuleSnapshot>(
+    module: &mut M,
+    path: &Path,
+    prefix: &str,
+    missing: Missing,
+    unexpected: Unexpected,
+) -> Result<LoadReport, LoadError> {
     let under_prefix = header_names(path)?
         .into_iter()
         .filter_map(|n| n.strip_prefix(prefix).map(rename_key))
@@ -83,19 +103,35 @@ pub fn load_safetensors<M: Module + ModuleSnapshot>(module: &mut M, path: &Path,
     let pattern = format!("^{}(.*)$", regex_escape(prefix));
     let mut remap = KeyRemapper::new()
         .add_pattern(&pattern, "$1")
-        .map_err(|e| LoadError::Read { path: path.to_path_buf(), message: format!("bad prefix {prefix:?}: {e}") })?;
+        .map_err(|e| LoadError::Read {
+            path: path.to_path_buf(),
+            message: format!("bad prefix {prefix:?}: {e}"),
+        })?;
     for (from, to) in KEY_RENAMES {
-        remap = remap.add_pattern(*from, *to).map_err(|e| LoadError::Read { path: path.to_path_buf(), message: format!("bad rename {from}: {e}") })?;
+        remap = remap.add_pattern(*from, *to).map_err(|e| LoadError::Read {
+            path: path.to_path_buf(),
+            message: format!("bad rename {from}: {e}"),
+        })?;
     }
-    let mut store = SafetensorsStore::from_file(path).remap(remap).with_from_adapter(PyTorchToBurnAdapter).allow_partial(true);
-    let result = module
-        .load_from(&mut store)
-        .map_err(|e| LoadError::Read { path: path.to_path_buf(), message: format!("{e:?}") })?;
+    let mut store = SafetensorsStore::from_file(path)
+        .remap(remap)
+        .with_from_adapter(PyTorchToBurnAdapter)
+        .allow_partial(true);
+    let result = module.load_from(&mut store).map_err(|e| LoadError::Read {
+        path: path.to_path_buf(),
+        message: format!("{e:?}"),
+    })?;
 
     let mut report = String::new();
     for e in &result.errors {
         let line = match e {
-            ApplyError::ShapeMismatch { path, expected, found } => format!("  mis-shaped: {path}: model expects {expected:?}, checkpoint has {found:?}"),
+            ApplyError::ShapeMismatch {
+                path,
+                expected,
+                found,
+            } => format!(
+                "  mis-shaped: {path}: model expects {expected:?}, checkpoint has {found:?}"
+            ),
             other => format!("  {other:?}"),
         };
         let _ = writeln!(report, "{line}");
@@ -106,14 +142,22 @@ pub fn load_safetensors<M: Module + ModuleSnapshot>(module: &mut M, path: &Path,
         }
     }
     // Only keys under the prefix count as unexpected: others were never meant for the model.
-    let unused_under_prefix: Vec<String> = result.unused.iter().filter(|k| under_prefix.contains(*k)).cloned().collect();
+    let unused_under_prefix: Vec<String> = result
+        .unused
+        .iter()
+        .filter(|k| under_prefix.contains(*k))
+        .cloned()
+        .collect();
     if unexpected == Unexpected::Reject {
         for key in &unused_under_prefix {
             let _ = writeln!(report, "  unexpected: {prefix}{key}");
         }
     }
     if !report.is_empty() {
-        return Err(LoadError::Mismatch { path: path.to_path_buf(), report });
+        return Err(LoadError::Mismatch {
+            path: path.to_path_buf(),
+            report,
+        });
     }
     Ok(LoadReport {
         applied: result.applied.len(),
@@ -128,19 +172,30 @@ const MAX_HEADER_BYTES: u64 = 64 << 20;
 /// Tensor names in a safetensors file, read from its header only.
 pub fn header_names(path: &Path) -> Result<Vec<String>, LoadError> {
     use std::io::Read;
-    let read_err = |message: String| LoadError::Read { path: path.to_path_buf(), message };
+    let read_err = |message: String| LoadError::Read {
+        path: path.to_path_buf(),
+        message,
+    };
     let mut f = std::fs::File::open(path).map_err(|e| read_err(e.to_string()))?;
     let mut len = [0u8; 8];
-    f.read_exact(&mut len).map_err(|e| read_err(format!("not a safetensors file (no header length): {e}")))?;
+    f.read_exact(&mut len)
+        .map_err(|e| read_err(format!("not a safetensors file (no header length): {e}")))?;
     let n = u64::from_le_bytes(len);
     if n == 0 || n > MAX_HEADER_BYTES {
-        return Err(read_err(format!("not a safetensors file (header length {n})")));
+        return Err(read_err(format!(
+            "not a safetensors file (header length {n})"
+        )));
     }
     let mut header = vec![0u8; n as usize];
-    f.read_exact(&mut header).map_err(|e| read_err(format!("truncated safetensors header: {e}")))?;
-    let map: serde_json::Map<String, serde_json::Value> =
-        serde_json::from_slice(&header).map_err(|e| read_err(format!("corrupt safetensors header: {e}")))?;
-    Ok(map.into_iter().map(|(k, _)| k).filter(|k| k != "__metadata__").collect())
+    f.read_exact(&mut header)
+        .map_err(|e| read_err(format!("truncated safetensors header: {e}")))?;
+    let map: serde_json::Map<String, serde_json::Value> = serde_json::from_slice(&header)
+        .map_err(|e| read_err(format!("corrupt safetensors header: {e}")))?;
+    Ok(map
+        .into_iter()
+        .map(|(k, _)| k)
+        .filter(|k| k != "__metadata__")
+        .collect())
 }
 
 fn regex_escape(s: &str) -> String {

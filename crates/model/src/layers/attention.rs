@@ -29,7 +29,11 @@ pub enum QkNorm {
 impl Attention {
     pub fn new(dim: usize, num_heads: usize, qk_norm: QkNorm, device: &Device) -> Self {
         let head_dim = dim / num_heads;
-        let norm = || LayerNormConfig::new(head_dim).with_epsilon(QK_NORM_EPS).init(device);
+        let norm = || {
+            LayerNormConfig::new(head_dim)
+                .with_epsilon(QK_NORM_EPS)
+                .init(device)
+        };
         Attention {
             qkv: LinearConfig::new(dim, 3 * dim).init(device),
             proj: LinearConfig::new(dim, dim).init(device),
@@ -45,8 +49,16 @@ impl Attention {
         let h = self.num_heads;
         let d = c / h;
         // [B, N, 3C] -> [3, B, H, N, d]: the 3C axis is [q | k | v], each split into heads.
-        let qkv = self.qkv.forward(x).reshape([b, n, 3, h, d]).permute([2, 0, 3, 1, 4]);
-        let part = |i: usize| qkv.clone().slice([i..i + 1, 0..b, 0..h, 0..n, 0..d]).reshape([b, h, n, d]);
+        let qkv = self
+            .qkv
+            .forward(x)
+            .reshape([b, n, 3, h, d])
+            .permute([2, 0, 3, 1, 4]);
+        let part = |i: usize| {
+            qkv.clone()
+                .slice([i..i + 1, 0..b, 0..h, 0..n, 0..d])
+                .reshape([b, h, n, d])
+        };
         let (mut q, mut k, v) = (part(0), part(1), part(2));
         if let (Some(qn), Some(kn)) = (&self.q_norm, &self.k_norm) {
             q = qn.forward(q);

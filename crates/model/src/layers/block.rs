@@ -22,7 +22,9 @@ pub struct LayerScale {
 
 impl LayerScale {
     pub fn new(dim: usize, init: f64, device: &Device) -> Self {
-        LayerScale { gamma: Param::from_tensor(Tensor::ones([dim], device).mul_scalar(init)) }
+        LayerScale {
+            gamma: Param::from_tensor(Tensor::ones([dim], device).mul_scalar(init)),
+        }
     }
 
     pub fn forward(&self, x: Tensor<3>) -> Tensor<3> {
@@ -44,7 +46,10 @@ impl Mlp {
     }
 
     pub fn with_output(dim_in: usize, hidden: usize, dim_out: usize, device: &Device) -> Self {
-        Mlp { fc1: LinearConfig::new(dim_in, hidden).init(device), fc2: LinearConfig::new(hidden, dim_out).init(device) }
+        Mlp {
+            fc1: LinearConfig::new(dim_in, hidden).init(device),
+            fc2: LinearConfig::new(hidden, dim_out).init(device),
+        }
     }
 
     pub fn forward<const D: usize>(&self, x: Tensor<D>) -> Tensor<D> {
@@ -75,7 +80,11 @@ pub struct Block {
 
 impl Block {
     pub fn new(spec: BlockSpec, device: &Device) -> Self {
-        let norm = || LayerNormConfig::new(spec.dim).with_epsilon(spec.norm_eps).init(device);
+        let norm = || {
+            LayerNormConfig::new(spec.dim)
+                .with_epsilon(spec.norm_eps)
+                .init(device)
+        };
         Block {
             norm1: norm(),
             attn: Attention::new(spec.dim, spec.num_heads, spec.qk_norm, device),
@@ -88,7 +97,10 @@ impl Block {
 
     /// `x: [B, N, C]`; `rope` only for frame/global blocks.
     pub fn forward(&self, x: Tensor<3>, rope: Option<&RopeTables>) -> Tensor<3> {
-        let x = x.clone() + self.ls1.forward(self.attn.forward(self.norm1.forward(x), rope));
+        let x = x.clone()
+            + self
+                .ls1
+                .forward(self.attn.forward(self.norm1.forward(x), rope));
         x.clone() + self.ls2.forward(self.mlp.forward(self.norm2.forward(x)))
     }
 }

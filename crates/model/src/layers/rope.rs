@@ -23,7 +23,10 @@ impl RopeTables {
     /// exactly as the reference does (f32 inverse frequencies, f32 angles).
     pub fn new(positions: &[Vec<[i64; 2]>], head_dim: usize, device: &Device) -> Self {
         let half = head_dim / 2;
-        let inv_freq: Vec<f32> = (0..half).step_by(2).map(|k| 1.0 / ROPE_BASE.powf(k as f32 / half as f32)).collect();
+        let inv_freq: Vec<f32> = (0..half)
+            .step_by(2)
+            .map(|k| 1.0 / ROPE_BASE.powf(k as f32 / half as f32))
+            .collect();
         let b = positions.len();
         let n = positions.first().map_or(0, |p| p.len());
         let mut cos = Vec::with_capacity(b * n * head_dim);
@@ -55,8 +58,13 @@ impl RopeTables {
         let quarter = d / 4;
         // rot(v) per half: split every half into two quarters q0 q1 -> (-q1, q0).
         let parts = x.clone().reshape([b, h, n, 4, quarter]);
-        let q = |i: usize| parts.clone().slice([0..b, 0..h, 0..n, i..i + 1, 0..quarter]);
-        let rotated = Tensor::cat(vec![q(1).neg(), q(0), q(3).neg(), q(2)], 3).reshape([b, h, n, d]);
+        let q = |i: usize| {
+            parts
+                .clone()
+                .slice([0..b, 0..h, 0..n, i..i + 1, 0..quarter])
+        };
+        let rotated =
+            Tensor::cat(vec![q(1).neg(), q(0), q(3).neg(), q(2)], 3).reshape([b, h, n, d]);
         x * self.cos.clone() + rotated * self.sin.clone()
     }
 }

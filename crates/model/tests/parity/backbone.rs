@@ -21,10 +21,20 @@ const OUT_ABS: f32 = 1e-5;
 #[test]
 fn sinusoid_matches_reference() {
     let fx = Fixture::open("blocks_tiny.safetensors");
-    let pos: Vec<f64> = fx.f32s("sinusoid/positions").iter().map(|p| *p as f64).collect();
+    let pos: Vec<f64> = fx
+        .f32s("sinusoid/positions")
+        .iter()
+        .map(|p| *p as f64)
+        .collect();
     let got = sinusoid(&pos, 256);
     let t = Tensor::<1>::from_floats(got.as_slice(), &Device::flex());
-    assert_close("sinusoid", t, &fx.f32s("sinusoid/output_f32"), UNIT_REL, UNIT_ABS);
+    assert_close(
+        "sinusoid",
+        t,
+        &fx.f32s("sinusoid/output_f32"),
+        UNIT_REL,
+        UNIT_ABS,
+    );
 }
 
 /// Guards pose decoding: scalar-last unnormalised quaternion, fov_h before fov_w, fy from H.
@@ -33,11 +43,24 @@ fn pose_encoding_matches_reference() {
     let fx = Fixture::open("blocks_tiny.safetensors");
     let device = Device::flex();
     for (h, w) in [(56usize, 84usize), (350, 518)] {
-        let (extr, intr) = pose_encoding_to_extri_intri(fx.tensor::<3>("pose_enc/input", &device), h, w);
+        let (extr, intr) =
+            pose_encoding_to_extri_intri(fx.tensor::<3>("pose_enc/input", &device), h, w);
         let [b, n, _, _] = extr.dims();
         let extr34 = extr.slice([0..b, 0..n, 0..3, 0..4]);
-        assert_close(&format!("extrinsics {h}x{w}"), flat(extr34), &fx.f32s(&format!("pose_enc/H{h}_W{w}/extrinsics")), UNIT_REL, UNIT_ABS);
-        assert_close(&format!("intrinsics {h}x{w}"), flat(intr), &fx.f32s(&format!("pose_enc/H{h}_W{w}/intrinsics")), UNIT_REL, UNIT_ABS);
+        assert_close(
+            &format!("extrinsics {h}x{w}"),
+            flat(extr34),
+            &fx.f32s(&format!("pose_enc/H{h}_W{w}/extrinsics")),
+            UNIT_REL,
+            UNIT_ABS,
+        );
+        assert_close(
+            &format!("intrinsics {h}x{w}"),
+            flat(intr),
+            &fx.f32s(&format!("pose_enc/H{h}_W{w}/intrinsics")),
+            UNIT_REL,
+            UNIT_ABS,
+        );
     }
 }
 
@@ -52,13 +75,25 @@ fn camera_head_matches_reference() {
     let agg = fx.tensor::<4>("camera_head/case_tokens/aggregated_last", &device);
     let [b, s, _, c] = agg.dims();
     let cases = [
-        ("case_tokens", agg.slice([0..b, 0..s, 0..1, 0..c]).reshape([b, s, c])),
-        ("case_extra", fx.tensor::<3>("camera_head/case_extra/extra_tokens", &device)),
+        (
+            "case_tokens",
+            agg.slice([0..b, 0..s, 0..1, 0..c]).reshape([b, s, c]),
+        ),
+        (
+            "case_extra",
+            fx.tensor::<3>("camera_head/case_extra/extra_tokens", &device),
+        ),
     ];
     for (case, tokens) in cases {
         let iters = head.forward(tokens);
         let got = Tensor::stack::<4>(iters, 0);
-        assert_close(case, flat(got), &fx.f32s(&format!("camera_head/{case}/pose_enc_iters")), UNIT_REL, UNIT_ABS);
+        assert_close(
+            case,
+            flat(got),
+            &fx.f32s(&format!("camera_head/{case}/pose_enc_iters")),
+            UNIT_REL,
+            UNIT_ABS,
+        );
     }
 }
 
@@ -68,19 +103,65 @@ fn camera_head_matches_reference() {
 fn dino_matches_reference() {
     let fx = Fixture::open("blocks_tiny.safetensors");
     let device = Device::flex();
-    let mut dino = Dino::new(&DinoConfig { embed_dim: 32, depth: 2, num_heads: 2, img_size: 518 }, 14, 4, &device);
+    let mut dino = Dino::new(
+        &DinoConfig {
+            embed_dim: 32,
+            depth: 2,
+            num_heads: 2,
+            img_size: 518,
+        },
+        14,
+        4,
+        &device,
+    );
     fx.load(&mut dino, "dino/weights/");
-    for (h, w) in [(56usize, 84usize), (350, 518), (70, 42), (546, 280), (28, 28)] {
+    for (h, w) in [
+        (56usize, 84usize),
+        (350, 518),
+        (70, 42),
+        (546, 280),
+        (28, 28),
+    ] {
         let pe = dino.interpolate_pos_embed(h / 14, w / 14);
-        assert_close(&format!("pos_embed {h}x{w}"), flat(pe), &fx.f32s(&format!("dino/pos_embed_interp/H{h}_W{w}")), UNIT_REL, UNIT_ABS);
+        assert_close(
+            &format!("pos_embed {h}x{w}"),
+            flat(pe),
+            &fx.f32s(&format!("dino/pos_embed_interp/H{h}_W{w}")),
+            UNIT_REL,
+            UNIT_ABS,
+        );
     }
     for case in ["case0", "case1"] {
         let out = dino.forward(fx.tensor::<4>(&format!("dino/{case}/input"), &device));
         let key = |k: &str| format!("dino/{case}/{k}");
-        assert_close(&key("x_prenorm"), flat(out.prenorm), &fx.f32s(&key("x_prenorm")), UNIT_REL, UNIT_ABS);
-        assert_close(&key("x_norm_patchtokens"), flat(out.patch_tokens), &fx.f32s(&key("x_norm_patchtokens")), UNIT_REL, UNIT_ABS);
-        assert_close(&key("x_norm_clstoken"), flat(out.cls_token), &fx.f32s(&key("x_norm_clstoken")), UNIT_REL, UNIT_ABS);
-        assert_close(&key("x_norm_regtokens"), flat(out.reg_tokens), &fx.f32s(&key("x_norm_regtokens")), UNIT_REL, UNIT_ABS);
+        assert_close(
+            &key("x_prenorm"),
+            flat(out.prenorm),
+            &fx.f32s(&key("x_prenorm")),
+            UNIT_REL,
+            UNIT_ABS,
+        );
+        assert_close(
+            &key("x_norm_patchtokens"),
+            flat(out.patch_tokens),
+            &fx.f32s(&key("x_norm_patchtokens")),
+            UNIT_REL,
+            UNIT_ABS,
+        );
+        assert_close(
+            &key("x_norm_clstoken"),
+            flat(out.cls_token),
+            &fx.f32s(&key("x_norm_clstoken")),
+            UNIT_REL,
+            UNIT_ABS,
+        );
+        assert_close(
+            &key("x_norm_regtokens"),
+            flat(out.reg_tokens),
+            &fx.f32s(&key("x_norm_regtokens")),
+            UNIT_REL,
+            UNIT_ABS,
+        );
     }
 }
 
@@ -92,14 +173,34 @@ fn tiny_backbone_matches_reference() {
     let device = Device::flex();
     let cfg = ModelConfig::tiny();
     let mut model = Envision4d::new(&cfg, &device);
-    let report = load_safetensors(&mut model, &fx.path, "weights/", Missing::Reject, Unexpected::Ignore).unwrap_or_else(|e| panic!("{e}"));
+    let report = load_safetensors(
+        &mut model,
+        &fx.path,
+        "weights/",
+        Missing::Reject,
+        Unexpected::Reject,
+    )
+    .unwrap_or_else(|e| panic!("{e}"));
     // Only the DPT heads may be left over until they exist.
-    assert!(report.ignored.iter().all(|k| k.contains("_head.") && !k.starts_with("camera_head")), "unexpected leftovers: {:?}", report.ignored);
+    assert!(
+        report
+            .ignored
+            .iter()
+            .all(|k| k.contains("_head.") && !k.starts_with("camera_head")),
+        "unexpected leftovers: {:?}",
+        report.ignored
+    );
     let images = fx.tensor::<5>("input/images", &device);
     let all: Vec<usize> = (0..cfg.depth).collect();
     let out = model.backbone(images, &all);
     let agg = &out.aggregator;
-    assert_close("images_normalized", flat(agg.norm_images.clone()), &fx.f32s("expected/images_normalized"), UNIT_REL, UNIT_ABS);
+    assert_close(
+        "images_normalized",
+        flat(agg.norm_images.clone()),
+        &fx.f32s("expected/images_normalized"),
+        UNIT_REL,
+        UNIT_ABS,
+    );
     for l in 0..cfg.depth {
         let key = format!("expected/aggregator/output_list.{l}");
         assert_close(&key, flat(agg.layer(l)), &fx.f32s(&key), AGG_REL, 0.0);
@@ -108,12 +209,109 @@ fn tiny_backbone_matches_reference() {
         let key = format!("expected/aggregator/time_list.{t}");
         assert_close(&key, flat(tensor.clone()), &fx.f32s(&key), AGG_REL, 0.0);
     }
-    assert_close("time_mlp", flat(model.future.time_tokens(4, &device)), &fx.f32s("expected/extra/time_mlp"), OUT_REL, OUT_ABS);
-    assert_close("camera_tokens", flat(out.tokens.camera.clone()), &fx.f32s("expected/extra/camera_tokens"), OUT_REL, OUT_ABS);
-    assert_close("time_tokens", flat(out.tokens.time.clone()), &fx.f32s("expected/extra/time_tokens"), OUT_REL, OUT_ABS);
+    assert_close(
+        "time_mlp",
+        flat(model.future.time_tokens(4, &device)),
+        &fx.f32s("expected/extra/time_mlp"),
+        OUT_REL,
+        OUT_ABS,
+    );
+    assert_close(
+        "camera_tokens",
+        flat(out.tokens.camera.clone()),
+        &fx.f32s("expected/extra/camera_tokens"),
+        OUT_REL,
+        OUT_ABS,
+    );
+    assert_close(
+        "time_tokens",
+        flat(out.tokens.time.clone()),
+        &fx.f32s("expected/extra/time_tokens"),
+        OUT_REL,
+        OUT_ABS,
+    );
     let iters = Tensor::stack::<4>(out.pose_enc_iters.clone(), 0);
-    assert_close("pose_enc_iters", flat(iters), &fx.f32s("expected/camera_head/pose_enc_iters"), OUT_REL, OUT_ABS);
-    assert_close("pose_enc", flat(out.pose_enc()), &fx.f32s("expected/pose_enc"), OUT_REL, OUT_ABS);
-    assert_close("adapter/extrinsics", flat(out.extrinsics.clone()), &fx.f32s("expected/adapter/extrinsics"), OUT_REL, OUT_ABS);
-    assert_close("adapter/intrinsics", flat(out.intrinsics.clone()), &fx.f32s("expected/adapter/intrinsics"), OUT_REL, OUT_ABS);
+    assert_close(
+        "pose_enc_iters",
+        flat(iters),
+        &fx.f32s("expected/camera_head/pose_enc_iters"),
+        OUT_REL,
+        OUT_ABS,
+    );
+    assert_close(
+        "pose_enc",
+        flat(out.pose_enc()),
+        &fx.f32s("expected/pose_enc"),
+        OUT_REL,
+        OUT_ABS,
+    );
+    assert_close(
+        "adapter/extrinsics",
+        flat(out.extrinsics.clone()),
+        &fx.f32s("expected/adapter/extrinsics"),
+        OUT_REL,
+        OUT_ABS,
+    );
+    assert_close(
+        "adapter/intrinsics",
+        flat(out.intrinsics.clone()),
+        &fx.f32s("expected/adapter/intrinsics"),
+        OUT_REL,
+        OUT_ABS,
+    );
+}
+
+/// Guards the complete tiny forward pass with strict loading of every checkpoint key: depth
+/// and confidence, raw Gaussians (image merger on normalised images), the conditioned motion
+/// lifting tokens (source-major, refined time tokens) and the motion head.
+#[test]
+fn tiny_full_forward_matches_reference() {
+    let fx = Fixture::open("envision4d_tiny.safetensors");
+    let device = Device::flex();
+    let cfg = ModelConfig::tiny();
+    let mut model = Envision4d::new(&cfg, &device);
+    load_safetensors(
+        &mut model,
+        &fx.path,
+        "weights/",
+        Missing::Reject,
+        Unexpected::Reject,
+    )
+    .unwrap_or_else(|e| panic!("{e}"));
+    let out = model.forward(
+        fx.tensor::<5>("input/images", &device),
+        envision4d_model::model::Heads::ALL,
+    );
+    assert_close(
+        "depth",
+        flat(out.depth.unwrap()),
+        &fx.f32s("expected/depth"),
+        OUT_REL,
+        OUT_ABS,
+    );
+    assert_close(
+        "depth_conf",
+        flat(out.depth_conf.unwrap()),
+        &fx.f32s("expected/depth_conf"),
+        OUT_REL,
+        OUT_ABS,
+    );
+    assert_close(
+        "gaussians",
+        flat(out.gaussians.unwrap()),
+        &fx.f32s("expected/gaussians"),
+        OUT_REL,
+        OUT_ABS,
+    );
+    for (t, m) in out.motion_tokens.unwrap().into_iter().enumerate() {
+        let key = format!("expected/motion_head/motion_tokens.{t}");
+        assert_close(&key, flat(m), &fx.f32s(&key), AGG_REL, 0.0);
+    }
+    assert_close(
+        "motion_enc",
+        flat(out.motion_enc.unwrap()),
+        &fx.f32s("expected/motion_enc"),
+        OUT_REL,
+        OUT_ABS,
+    );
 }

@@ -13,8 +13,11 @@ pub struct Fixture {
 impl Fixture {
     /// Opens `../shared/fixtures/<name>`; a missing file fails the test, naming the path.
     pub fn open(name: &str) -> Self {
-        let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/fixtures").join(name);
-        let bytes = std::fs::read(&path).unwrap_or_else(|e| panic!("fixture {} is required: {e}", path.display()));
+        let path = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+            .join("../../../shared/fixtures")
+            .join(name);
+        let bytes = std::fs::read(&path)
+            .unwrap_or_else(|e| panic!("fixture {} is required: {e}", path.display()));
         Fixture { path, bytes }
     }
 
@@ -23,50 +26,89 @@ impl Fixture {
     }
 
     pub fn shape(&self, key: &str) -> Vec<usize> {
-        self.view().tensor(key).unwrap_or_else(|_| panic!("fixture key {key} missing")).shape().to_vec()
+        self.view()
+            .tensor(key)
+            .unwrap_or_else(|_| panic!("fixture key {key} missing"))
+            .shape()
+            .to_vec()
     }
 
     pub fn f32s(&self, key: &str) -> Vec<f32> {
         let st = self.view();
-        let t = st.tensor(key).unwrap_or_else(|_| panic!("fixture key {key} missing"));
+        let t = st
+            .tensor(key)
+            .unwrap_or_else(|_| panic!("fixture key {key} missing"));
         match t.dtype() {
-            safetensors::Dtype::F32 => t.data().chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect(),
-            safetensors::Dtype::F64 => t.data().chunks_exact(8).map(|b| f64::from_le_bytes(b.try_into().unwrap()) as f32).collect(),
+            safetensors::Dtype::F32 => t
+                .data()
+                .chunks_exact(4)
+                .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+                .collect(),
+            safetensors::Dtype::F64 => t
+                .data()
+                .chunks_exact(8)
+                .map(|b| f64::from_le_bytes(b.try_into().unwrap()) as f32)
+                .collect(),
             d => panic!("{key}: unexpected dtype {d:?}"),
         }
     }
 
     pub fn i64s(&self, key: &str) -> Vec<i64> {
         let st = self.view();
-        let t = st.tensor(key).unwrap_or_else(|_| panic!("fixture key {key} missing"));
+        let t = st
+            .tensor(key)
+            .unwrap_or_else(|_| panic!("fixture key {key} missing"));
         assert_eq!(t.dtype(), safetensors::Dtype::I64, "{key}");
-        t.data().chunks_exact(8).map(|b| i64::from_le_bytes(b.try_into().unwrap())).collect()
+        t.data()
+            .chunks_exact(8)
+            .map(|b| i64::from_le_bytes(b.try_into().unwrap()))
+            .collect()
     }
 
     pub fn tensor<const D: usize>(&self, key: &str, device: &Device) -> Tensor<D> {
         let shape = self.shape(key);
         assert_eq!(shape.len(), D, "{key}: rank");
-        Tensor::from_data((TensorData::new(self.f32s(key), shape), DType::F32).0, device)
+        Tensor::from_data(
+            (TensorData::new(self.f32s(key), shape), DType::F32).0,
+            device,
+        )
     }
 
     /// Loads every parameter of `module` from `<prefix><official key>`; all must be present.
-    pub fn load<M: burn::module::Module + burn::store::ModuleSnapshot>(&self, module: &mut M, prefix: &str) {
-        let report = load_safetensors(module, &self.path, prefix, Missing::Reject, Unexpected::Reject)
-            .unwrap_or_else(|e| panic!("loading {prefix}*: {e}"));
+    pub fn load<M: burn::module::Module + burn::store::ModuleSnapshot>(
+        &self,
+        module: &mut M,
+        prefix: &str,
+    ) {
+        let report = load_safetensors(
+            module,
+            &self.path,
+            prefix,
+            Missing::Reject,
+            Unexpected::Reject,
+        )
+        .unwrap_or_else(|e| panic!("loading {prefix}*: {e}"));
         assert!(report.applied > 0, "nothing loaded under {prefix}");
     }
 }
 
 /// Asserts `|got - want| <= rel * max|want| + abs` elementwise and returns the worst ratio.
 pub fn assert_close(what: &str, got: Tensor<1>, want: &[f32], rel: f32, abs: f32) -> f32 {
-    let got: Vec<f32> = got.into_data().convert::<f32>().try_into_vec::<f32>().unwrap();
+    let got: Vec<f32> = got
+        .into_data()
+        .convert::<f32>()
+        .try_into_vec::<f32>()
+        .unwrap();
     assert_eq!(got.len(), want.len(), "{what}: length");
     let scale = want.iter().fold(0.0f32, |m, v| m.max(v.abs()));
     let tol = rel * scale + abs;
     let mut worst = 0.0f32;
     for (i, (g, w)) in got.iter().zip(want).enumerate() {
         let d = (g - w).abs();
-        assert!(d <= tol, "{what}[{i}]: got {g}, want {w} (|diff| {d:e} > tol {tol:e}, max|ref| {scale})");
+        assert!(
+            d <= tol,
+            "{what}[{i}]: got {g}, want {w} (|diff| {d:e} > tol {tol:e}, max|ref| {scale})"
+        );
         worst = worst.max(d / scale.max(1e-30));
     }
     eprintln!("{what}: max |diff| / max|ref| = {worst:.2e}");
