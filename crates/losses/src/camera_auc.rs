@@ -1,0 +1,220 @@
+//! Camera pose AUC@30 as VGGT's `evaluation/test_co3d.py` computes it (model.md §4.3).
+
+use crate::error::{LossError, Result};
+
+/// A world-to-camera extrinsic `[R | t]` (3 rows of 4, OpenCV axes), as returned by
+/// `pose_encoding_to_extri_intri`.
+pub type Extrinsic = [[f64; 4]; 3];
+
+/// Largest threshold of the paper's metric, in degrees.
+pub const AUC_MAX_THRESHOLD_DEG: usize = 30;
+/// VGGT's floor on `1 − ⟨·,·⟩²` before the arccos (keeps the angle finite at 0).
+const ANGLE_EPS: f64 = 1e-15;
+/// VGGT's value for a translation angle that came out NaN/inf.
+const INVALID_ANGLE_DEG: f64 = 1e6;
+
+/// Errors of one frame pair `(i, j)`, `i < j`, in degrees.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PairError {
+    /// First frame index.
+    pub i: usize,
+    /// Second frame index.
+    pub j: usize,
+    /// Relative rotation angle error.
+    pub rotation_deg: f64,
+    /// Relative translation direction angle error (sign-ambiguity folded).
+    pub translation_deg: f64,
+}
+
+impl PairError {
+    /// `max(rotation, translation)`, the value the AUC histogram counts.
+    pub fn max_deg(&self) -> f64 {
+        self.rotation_deg.max(self.translation_deg)
+    }
+}
+
+/// Relative pose errors of every unordered frame pair `(i < j)`.
+///
+/// Definition (VGGT `test_co3d.py`): both sets of world-to-camera `E` are first aligned to
+/// their first camera (`E_k ← E_k · E_0⁻¹`, `align_to_first_camera`); the relative pose of a
+/// pair is then `E_i⁻¹ · E_j` (`se3_to_relative_pose_error`), for prediction and ground truth
+/// alike. (model.md §4.3 writes `E_i·E_j⁻¹`; VGGT's code computes `E_i⁻¹·E_j` after the
+/// alignment, and that is what is implemented.)
+/// * Rotation: `err_R = arccos(1 − 2·max(1 − ⟨q_pred, q_gt⟩², 1e-15))`, where
+///   `⟨q_pred, q_gt⟩² = (1 + tr(R_gtᵀ R_pred)) / 4` is the squared quaternion dot product
+///   (identical to VGGT's `mat_to_quat` route for rotation matrices, without its branches).
+/// * Translation: unit vectors `t/(‖t‖ + 1e-15)`,
+///   `err_t = arccos(sqrt(1 − max(1 − ⟨t̂, t̂_gt⟩², 1e-15)))`, NaN/inf → 1e6, then
+///   `min(err_t, |180 − err_t|)`. Direction only, so the metric is scale-free.
+///
+/// Errors on different frame counts, fewer than 2 frames or a non-finite matrix entry.
+pub fn relative_pose_errors(pred: &[Extrinsic], gt: &[Extrinsic]) -> Result<Vec<PairError>> {
+    if pred.len() != gt.len() {
+        return Err(LossError::ShapeMismatch {
+            what: "camera auc extrinsics",
+            left: vec![pred.len(), 3, 4],
+            right: vec![gt.len(), 3, 4],
+        });
+    }
+    if pred.len() < 2 {
+        return Err(LossError::Invalid {
+            what: "camera auc",
+            reason: format!("needs at least 2 frames, got {}", pred.len()),
+        });
+    }
+    for (what, set) in [
+        ("predicted extrinsics", pred),
+        ("ground-truth extrinsics", gt),
+    ] {
+        let flat: Vec<f64> = set.iter().flatten().flatten().copied().collect();
+        crate::error::ensure_finite(what, &flat)?;
+    }
+    let (pred, gt) = (align_to_first(pred), align_to_first(gt));
+    let mut out = Vec::new();
+    for i in 0..pred.len() {
+        for j in i + 1..pred.len() {
+            let (rg, tg) = relative(&gt[i], &gt[j]);
+            let (rp, tp) = relative(&pred[i], &pred[j]);
+            out.push(PairError {
+                i,
+                j,
+                rotation_deg: rotation_error_deg(&rg, &rp),
+                translation_deg: translation_error_deg(&tg, &tp),
+            });
+        }
+    }
+    Ok(out)
+}
+
+/// AUC over thresholds 1..=`max_threshold` degrees of `max(err_R, err_t)` per pair, in [0, 1]
+/// (the paper's tables show ×100).
+///
+/// Definition (VGGT `calculate_auc_np`): `numpy.histogram(errors, bins=[0, 1, ..., T])`
+/// (bins `[k, k+1)`, the last one closed; errors above `T` are not counted), divided by the
+/// number of pairs, cumulated; the AUC is the mean of the `T` cumulative values. So all
+/// errors equal to 15° give 0.5 at T = 30. Pool pairs from several clips by concatenating
+/// their errors. Errors on an empty list or a non-finite or negative error.
+pub fn auc_from_errors(max_errors_deg: &[f64], max_threshold: usize) -> Result<f64> {
+    if max_errors_deg.is_empty() || max_threshold == 0 {
+        return Err(LossError::Invalid {
+            what: "camera auc",
+            reason: format!(
+                "needs at least one pair and a positive threshold (got {} pairs, threshold {max_threshold})",
+                max_errors_deg.len()
+            ),
+        });
+    }
+    crate::error::ensure_finite("camera auc errors", max_errors_deg)?;
+    if let Some(&e) = max_errors_deg.iter().find(|&&e| e < 0.0) {
+        return Err(LossError::Invalid {
+            what: "camera auc",
+            reason: format!("negative angular error {e}"),
+        });
+    }
+    let top = max_threshold as f64;
+    let mut hist = vec![0usize; max_threshold];
+    for &e in max_errors_deg {
+        if e < top {
+            hist[e.floor() as usize] += 1;
+        } else if e == top {
+            // numpy's last bin includes its right edge.
+            hist[max_threshold - 1] += 1;
+        }
+    }
+    let pairs = max_errors_deg.len() as f64;
+    let mut cumulative = 0.0;
+    let mut total = 0.0;
+    for count in hist {
+        cumulative += count as f64 / pairs;
+        total += cumulative;
+    }
+    Ok(total / max_threshold as f64)
+}
+
+/// AUC@30 of one sequence: all pairs, [`relative_pose_errors`] then [`auc_from_errors`].
+pub fn camera_auc30(pred: &[Extrinsic], gt: &[Extrinsic]) -> Result<f64> {
+    let errors: Vec<f64> = relative_pose_errors(pred, gt)?
+        .iter()
+        .map(PairError::max_deg)
+        .collect();
+    auc_from_errors(&errors, AUC_MAX_THRESHOLD_DEG)
+}
+
+type Mat3 = [[f64; 3]; 3];
+type Mat4 = [[f64; 4]; 4];
+
+/// `[R | t]` as a homogeneous 4×4 matrix.
+fn homogeneous(e: &Extrinsic) -> Mat4 {
+    [e[0], e[1], e[2], [0.0, 0.0, 0.0, 1.0]]
+}
+
+/// VGGT's `closed_form_inverse_se3`: `[Rᵀ | −Rᵀt]`.
+fn inverse_se3(m: &Mat4) -> Mat4 {
+    let mut out = [[0.0; 4]; 4];
+    for r in 0..3 {
+        for c in 0..3 {
+            out[r][c] = m[c][r];
+        }
+        out[r][3] = -(0..3).map(|k| m[k][r] * m[k][3]).sum::<f64>();
+    }
+    out[3][3] = 1.0;
+    out
+}
+
+fn matmul(a: &Mat4, b: &Mat4) -> Mat4 {
+    let mut out = [[0.0; 4]; 4];
+    for (r, row) in out.iter_mut().enumerate() {
+        for (c, v) in row.iter_mut().enumerate() {
+            *v = (0..4).map(|k| a[r][k] * b[k][c]).sum();
+        }
+    }
+    out
+}
+
+/// VGGT's `align_to_first_camera`: `E_k · E_0⁻¹`, so the first camera becomes the world
+/// frame and the errors no longer depend on the world frame.
+fn align_to_first(set: &[Extrinsic]) -> Vec<Mat4> {
+    let first_inv = inverse_se3(&homogeneous(&set[0]));
+    set.iter()
+        .map(|e| matmul(&homogeneous(e), &first_inv))
+        .collect()
+}
+
+/// `E_a⁻¹ · E_b` as rotation and translation.
+fn relative(a: &Mat4, b: &Mat4) -> (Mat3, [f64; 3]) {
+    let m = matmul(&inverse_se3(a), b);
+    let r = [
+        [m[0][0], m[0][1], m[0][2]],
+        [m[1][0], m[1][1], m[1][2]],
+        [m[2][0], m[2][1], m[2][2]],
+    ];
+    (r, [m[0][3], m[1][3], m[2][3]])
+}
+
+fn rotation_error_deg(gt: &Mat3, pred: &Mat3) -> f64 {
+    // tr(gtᵀ·pred) = Σ gt ⊙ pred.
+    let trace: f64 = (0..3)
+        .flat_map(|r| (0..3).map(move |c| (r, c)))
+        .map(|(r, c)| gt[r][c] * pred[r][c])
+        .sum();
+    let dot_sq = ((1.0 + trace) / 4.0).clamp(0.0, 1.0);
+    let loss = (1.0 - dot_sq).max(ANGLE_EPS);
+    (1.0 - 2.0 * loss).clamp(-1.0, 1.0).acos().to_degrees()
+}
+
+fn translation_error_deg(gt: &[f64; 3], pred: &[f64; 3]) -> f64 {
+    let unit = |t: &[f64; 3]| {
+        let n = t.iter().map(|v| v * v).sum::<f64>().sqrt();
+        t.map(|v| v / (n + ANGLE_EPS))
+    };
+    let (a, b) = (unit(gt), unit(pred));
+    let dot: f64 = (0..3).map(|k| a[k] * b[k]).sum();
+    let loss = (1.0 - dot * dot).max(ANGLE_EPS);
+    let err = (1.0 - loss).sqrt().acos().to_degrees();
+    let err = if err.is_finite() {
+        err
+    } else {
+        INVALID_ANGLE_DEG
+    };
+    err.min((180.0 - err).abs())
+}

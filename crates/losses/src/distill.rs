@@ -1,0 +1,118 @@
+//! Self-distillation losses (paper §3.4): the student's pose encodings and context depth
+//! maps are pulled towards those of a frozen VGGT teacher, whose outputs are passed in.
+
+use burn::tensor::Tensor;
+
+use crate::error::{LossError, Result};
+
+/// λ_cam of the paper (§4, implementation details).
+pub const CAMERA_DISTILL_WEIGHT: f64 = 5.0;
+/// λ_depth: the paper gives none; 1.0 is the documented default (model.md §3).
+pub const DEPTH_DISTILL_WEIGHT: f64 = 1.0;
+
+/// Weights of the two distillation terms.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DistillWeights {
+    /// Multiplies `L_cam`.
+    pub camera: f64,
+    /// Multiplies `L_depth`.
+    pub depth: f64,
+}
+
+impl Default for DistillWeights {
+    fn default() -> Self {
+        Self {
+            camera: CAMERA_DISTILL_WEIGHT,
+            depth: DEPTH_DISTILL_WEIGHT,
+        }
+    }
+}
+
+/// The unweighted terms and the weighted sum, all scalar tensors `[1]`.
+#[derive(Debug, Clone)]
+pub struct DistillTerms {
+    /// `L_cam` (unweighted).
+    pub camera: Tensor<1>,
+    /// `L_depth` (unweighted).
+    pub depth: Tensor<1>,
+    /// `camera_weight·L_cam + depth_weight·L_depth`.
+    pub total: Tensor<1>,
+}
+
+/// `L_cam = ‖P − P_teacher‖₁`, the mean absolute difference over every element of the 9-d
+/// pose encodings (`absT_quaR_FoV`, `[..., 9]`, all frames of the clip; mean over frames and
+/// dims, model.md §3). The teacher is detached. Returns a scalar `[1]`.
+pub fn camera_distill<const D: usize>(pose: Tensor<D>, teacher: Tensor<D>) -> Result<Tensor<1>> {
+    let dims = pose.dims();
+    if D == 0 || dims[D - 1] != POSE_ENCODING_DIM {
+        return Err(LossError::BadShape {
+            what: "camera distillation pose",
+            expected: "[..., 9] (absT_quaR_FoV pose encodings)",
+            got: dims.to_vec(),
+        });
+    }
+    l1_mean("camera distillation", pose, teacher)
+}
+
+/// `L_depth = ‖D − D_teacher‖₁`, the mean absolute difference over the context depth maps
+/// (any shape, e.g. `[B, S, H, W, 1]`). The teacher is detached. Returns a scalar `[1]`.
+pub fn depth_distill<const D: usize>(depth: Tensor<D>, teacher: Tensor<D>) -> Result<Tensor<1>> {
+    l1_mean("depth distillation", depth, teacher)
+}
+
+/// Both terms and their weighted sum.
+pub fn distill<const DP: usize, const DD: usize>(
+    weights: DistillWeights,
+    pose: Tensor<DP>,
+    pose_teacher: Tensor<DP>,
+    depth: Tensor<DD>,
+    depth_teacher: Tensor<DD>,
+) -> Result<DistillTerms> {
+    if !(weights.camera.is_finite() && weights.depth.is_finite()) {
+        return Err(LossError::Invalid {
+            what: "distillation weights",
+            reason: format!("weights must be finite, got {weights:?}"),
+        });
+    }
+    let camera = camera_distill(pose, pose_teacher)?;
+    let depth = depth_distill(depth, depth_teacher)?;
+    let total = camera.clone() * weights.camera + depth.clone() * weights.depth;
+    Ok(DistillTerms {
+        camera,
+        depth,
+        total,
+    })
+}
+
+/// Width of a pose encoding: translation 3, quaternion 4, FoV 2.
+const POSE_ENCODING_DIM: usize = 9;
+
+fn l1_mean<const D: usize>(
+    what: &'static str,
+    student: Tensor<D>,
+    teacher: Tensor<D>,
+) -> Result<Tensor<1>> {
+    let (ds, dt) = (student.dims(), teacher.dims());
+    if ds != dt {
+        return Err(LossError::ShapeMismatch {
+            what,
+            left: ds.to_vec(),
+            right: dt.to_vec(),
+        });
+    }
+    if ds.iter().any(|&d| d == 0) {
+        return Err(LossError::BadShape {
+            what,
+            expected: "a non-empty tensor",
+            got: ds.to_vec(),
+        });
+    }
+    if student.dtype() != teacher.dtype() {
+        return Err(LossError::DtypeMismatch {
+            what,
+            expected: format!("{:?}", student.dtype()),
+            got: format!("{:?}", teacher.dtype()),
+        });
+    }
+    Ok((student - teacher.detach()).abs().mean())
+}

@@ -1,0 +1,78 @@
+//! The rendering loss `L_rgb = MSE + λ_lpips · LPIPS`, per frame.
+
+use burn::tensor::Tensor;
+
+use crate::error::{LossError, Result};
+use crate::lpips::{Lpips, LpipsStatus};
+use crate::mse::mse_per_frame;
+
+/// λ_lpips of the paper (§4, implementation details).
+pub const LPIPS_LOSS_WEIGHT: f64 = 0.05;
+
+/// Per-frame terms, each `[F]`.
+#[derive(Debug, Clone)]
+pub struct RgbTerms {
+    /// MSE per frame.
+    pub mse: Tensor<1>,
+    /// LPIPS per frame (`None` when λ_lpips = 0).
+    pub lpips: Option<Tensor<1>>,
+    /// `mse + λ_lpips · lpips` per frame, ready for the progressive frame weights.
+    pub total: Tensor<1>,
+}
+
+/// The configured rendering loss. Construction refuses λ_lpips > 0 without LPIPS weights,
+/// so training cannot silently run without its perceptual term.
+#[derive(Debug, Clone)]
+pub struct RgbLoss {
+    lambda_lpips: f64,
+    lpips: Option<Lpips>,
+}
+
+impl RgbLoss {
+    /// `lambda_lpips` must be finite and ≥ 0; if > 0, `lpips` must be available.
+    pub fn new(lambda_lpips: f64, lpips: &LpipsStatus) -> Result<Self> {
+        if !(lambda_lpips.is_finite() && lambda_lpips >= 0.0) {
+            return Err(LossError::Invalid {
+                what: "lambda_lpips",
+                reason: format!("must be finite and >= 0, got {lambda_lpips}"),
+            });
+        }
+        let lpips = if lambda_lpips > 0.0 {
+            Some(lpips.require()?.clone())
+        } else {
+            None
+        };
+        Ok(Self {
+            lambda_lpips,
+            lpips,
+        })
+    }
+
+    /// λ_lpips in use.
+    pub fn lambda_lpips(&self) -> f64 {
+        self.lambda_lpips
+    }
+
+    /// `L_rgb` per frame of `[F, 3, H, W]` renders against targets in [0, 1]. The target is
+    /// detached; gradients flow into `pred` only.
+    pub fn per_frame(&self, pred: Tensor<4>, target: Tensor<4>) -> Result<RgbTerms> {
+        let target = target.detach();
+        let mse = mse_per_frame(pred.clone(), target.clone())?;
+        match &self.lpips {
+            Some(net) => {
+                let lp = net.forward(pred, target)?;
+                let total = mse.clone() + lp.clone() * self.lambda_lpips;
+                Ok(RgbTerms {
+                    mse,
+                    lpips: Some(lp),
+                    total,
+                })
+            }
+            None => Ok(RgbTerms {
+                total: mse.clone(),
+                mse,
+                lpips: None,
+            }),
+        }
+    }
+}

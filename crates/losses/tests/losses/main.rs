@@ -1,0 +1,10 @@
+//! Integration tests of `envision4d-losses` (one binary, so the crate links once).
+
+mod camera;
+mod common;
+mod depth;
+mod edge;
+mod gradients;
+mod lpips;
+mod parity;
+mod properties;

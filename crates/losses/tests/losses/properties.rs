@@ -1,0 +1,75 @@
+//! Metric properties: SSIM(x, x) = 1, symmetry, crops applied consistently.
+
+use burn::tensor::{DType, Device};
+use envision4d_losses::{evaluate_images, psnr, ssim, EvalCrop, HostImages, Lpips, LpipsStatus};
+
+use crate::common::{fixture_images, fixture_vgg_weights, tensor, Rng};
+
+fn images(seed: u64, shape: [usize; 4]) -> HostImages {
+    let mut rng = Rng::new(seed);
+    HostImages::new("test", rng.vec(shape.iter().product(), 0.0, 1.0), shape).unwrap()
+}
+
+/// Guards SSIM(x, x) = 1 and the symmetry of SSIM and PSNR.
+#[test]
+fn ssim_identity_and_symmetry() {
+    let (x, y) = (images(1, [2, 3, 20, 24]), images(2, [2, 3, 20, 24]));
+    for s in ssim(&x, &x).unwrap() {
+        assert!((s - 1.0).abs() < 1e-12, "SSIM(x,x) = {s}");
+    }
+    let (a, b) = (ssim(&x, &y).unwrap(), ssim(&y, &x).unwrap());
+    for (p, q) in a.iter().zip(&b) {
+        assert!((p - q).abs() < 1e-12 && *p < 0.5, "{p} vs {q}");
+    }
+    let (a, b) = (psnr(&x, &y).unwrap(), psnr(&y, &x).unwrap());
+    assert_eq!(a, b);
+}
+
+/// Guards the evaluation crop: every metric sees the same cropped pixels (equal to cropping
+/// by hand), and the tensor crop keeps the right window.
+#[test]
+fn crop_is_applied_consistently() {
+    let (gt, pred) = (
+        fixture_images("input/ground_truth"),
+        fixture_images("input/predicted"),
+    );
+    let crop = EvalCrop::RELEASE_MAIN;
+    let lpips = LpipsStatus::Available(Lpips::new(
+        &fixture_vgg_weights(),
+        &Device::flex(),
+        DType::F32,
+    ));
+    let m = evaluate_images(&pred, &gt, crop, &lpips).unwrap();
+    let (cp, cg) = (
+        crop.apply_images(&pred).unwrap(),
+        crop.apply_images(&gt).unwrap(),
+    );
+    assert_eq!(cp.shape(), [3, 3, 64 - 12, 96 - 16]);
+    assert_eq!(m.psnr, psnr(&cp, &cg).unwrap());
+    assert_eq!(m.ssim, ssim(&cp, &cg).unwrap());
+    let direct = lpips.get().unwrap().distance_host(&cg, &cp).unwrap();
+    assert_eq!(m.lpips.unwrap(), direct);
+    let uncropped = evaluate_images(&pred, &gt, EvalCrop::default(), &lpips).unwrap();
+    assert_ne!(uncropped.psnr, m.psnr);
+
+    let t = tensor(pred.data(), pred.shape(), &Device::flex(), DType::F64);
+    let ct = crop.apply_tensor(t).unwrap();
+    assert_eq!(ct.dims(), [3, 3, 52, 80]);
+    assert_eq!(crate::common::values(ct), cp.data().to_vec());
+    assert_eq!(
+        EvalCrop::from_ranges([6, 6], [10, 6]),
+        EvalCrop::RELEASE_MAIN
+    );
+}
+
+/// Guards metrics without LPIPS weights: no LPIPS number is produced.
+#[test]
+fn evaluation_without_lpips_reports_none() {
+    let (x, y) = (images(1, [1, 3, 16, 16]), images(2, [1, 3, 16, 16]));
+    let status = LpipsStatus::Unavailable {
+        reason: "test".into(),
+    };
+    let m = evaluate_images(&x, &y, EvalCrop::default(), &status).unwrap();
+    assert!(m.lpips.is_none());
+    assert_eq!(m.psnr.len(), 1);
+}
