@@ -10,6 +10,7 @@ pub mod layers;
 
 pub use config::{ConfigError, ModelConfig};
 pub use model::Envision4d;
+pub mod adapter;
 pub mod aggregator;
 pub mod camera_head;
 pub mod dino;

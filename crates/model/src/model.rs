@@ -1,6 +1,7 @@
 //! The Envision4D network (the release's `VGGT` module inside `EncoderEnvi4D`): aggregator with
 //! temporal blocks → future-pose module → camera head (→ poses), plus the DPT heads.
 
+use crate::adapter::{adapt, AdaptedGaussians, OpacityMapping, ScaleRange};
 use crate::aggregator::{Aggregator, AggregatorOutput};
 use crate::camera_head::CameraHead;
 use crate::config::ModelConfig;
@@ -21,6 +22,8 @@ pub struct Envision4d {
     pub gs_head: DptHead,
     pub motion_head: DptHead,
     pub temporal_layers: [usize; 4],
+    pub scale_min: f64,
+    pub scale_max: f64,
 }
 
 /// Which heads a forward pass runs ("leave out what a command does not need").
@@ -91,6 +94,8 @@ impl Envision4d {
             gs_head: dpt(DptKind::Gaussians),
             motion_head: dpt(DptKind::Motion),
             temporal_layers: cfg.temporal_layers,
+            scale_min: cfg.gaussian_scale_min,
+            scale_max: cfg.gaussian_scale_max,
         }
     }
 
@@ -166,5 +171,49 @@ impl Envision4d {
             extrinsics,
             intrinsics,
         }
+    }
+
+    /// World-space Gaussians of the context frames (needs the depth, Gaussian and motion
+    /// heads). `step` drives the opacity schedule (identity for the released config).
+    pub fn adapt(
+        &self,
+        p: &Predictions,
+        opacity: OpacityMapping,
+        step: u64,
+    ) -> Option<AdaptedGaussians> {
+        let (depth, raw, motion) = (
+            p.depth.clone()?,
+            p.gaussians.clone()?,
+            p.motion_enc.clone()?,
+        );
+        let [b, s, h, w, c] = raw.dims();
+        let bb = &p.backbone;
+        let extr = bb.extrinsics.clone().slice([0..b, 0..s, 0..4, 0..4]);
+        // Normalised intrinsics: row 0 / W, row 1 / H.
+        let scale =
+            Tensor::<1>::from_floats([1.0 / w as f32, 1.0 / h as f32, 1.0], &depth.device())
+                .reshape([1, 1, 3, 1]);
+        let intr_n = bb.intrinsics.clone().slice([0..b, 0..s, 0..3, 0..3]) * scale;
+        let opac = opacity.apply(
+            burn::tensor::activation::sigmoid(
+                raw.clone()
+                    .slice([0..b, 0..s, 0..h, 0..w, 0..1])
+                    .reshape([b, s, h, w]),
+            ),
+            step,
+        );
+        let rest = raw.slice([0..b, 0..s, 0..h, 0..w, 1..c]);
+        Some(adapt(
+            extr,
+            intr_n,
+            depth.reshape([b, s, h, w]),
+            opac,
+            rest,
+            motion,
+            ScaleRange {
+                min: self.scale_min,
+                max: self.scale_max,
+            },
+        ))
     }
 }

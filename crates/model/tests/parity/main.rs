@@ -1,6 +1,7 @@
 //! Parity with the official PyTorch reference: the golden fixtures in `../shared/fixtures`
 //! (seeded random weights under their official names, inputs and expected outputs).
 
+mod adapter;
 mod backbone;
 mod fixture;
 mod heads;
