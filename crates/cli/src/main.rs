@@ -5,6 +5,7 @@
 mod backend_choice;
 mod image_out;
 mod splat_cmd;
+mod synth_cmd;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
@@ -24,6 +25,8 @@ struct Cli {
 enum Command {
     /// Render a standard 3DGS PLY file from a camera (PNG or linear EXR).
     Splat(splat_cmd::SplatArgs),
+    /// Render synthetic driving clips with exact ground truth (ray-traced).
+    Synth(synth_cmd::SynthArgs),
 }
 
 /// An error caused by the user's input (exit code 2) rather than by the program.
@@ -35,6 +38,7 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Splat(args) => splat_cmd::run(args),
+        Command::Synth(args) => synth_cmd::run(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -1,0 +1,74 @@
+//! What a loaded clip is: frames, their size before fitting, and optional ground truth.
+
+use crate::error::{DataError, Result};
+use crate::exr_io::FloatMap;
+use crate::frame::Image;
+use crate::geom::{Intrinsics, Mat4};
+use std::path::PathBuf;
+
+/// Frames per clip: the first `context` are the model's input, the rest are predicted.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ClipSpec {
+    pub context: usize,
+    pub future: usize,
+}
+
+impl Default for ClipSpec {
+    /// The paper's T_c = T_f = 2 (spec §1: N = 4).
+    fn default() -> Self {
+        ClipSpec {
+            context: 2,
+            future: 2,
+        }
+    }
+}
+
+impl ClipSpec {
+    pub fn num_frames(&self) -> usize {
+        self.context + self.future
+    }
+    pub fn validate(&self) -> Result<()> {
+        if self.context == 0 {
+            return Err(DataError::config(
+                "context",
+                0,
+                "need at least one context frame",
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// A depth map on its own pixel grid (e.g. STORM's quarter-resolution LiDAR), with the
+/// intrinsics valid for that grid. Values are z-depth in metres; 0 = no measurement.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DepthMap {
+    pub map: FloatMap,
+    pub intrinsics: Intrinsics,
+}
+
+/// Optional per-frame ground truth. Intrinsics refer to the fitted (output) frame.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct FrameGt {
+    pub intrinsics: Option<Intrinsics>,
+    /// OpenCV world-to-camera (x right, y down, z forward).
+    pub world_to_camera: Option<Mat4>,
+    /// Vehicle-to-world (STORM's `ego_to_world`).
+    pub ego_to_world: Option<Mat4>,
+    pub depth: Option<DepthMap>,
+    /// Scene flow to the next frame, world frame, metres, on the depth grid (synthetic only).
+    pub flow: Option<FloatMap>,
+}
+
+/// A decoded clip.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Clip {
+    pub id: String,
+    /// Fitted frames, all the same size.
+    pub frames: Vec<Image>,
+    /// Size (H, W) of the source frames before fitting.
+    pub source_size: (usize, usize),
+    /// One entry per frame, or empty when the layout has no ground truth.
+    pub gt: Vec<FrameGt>,
+    pub frame_paths: Vec<PathBuf>,
+}

@@ -1,0 +1,179 @@
+//! Our synthetic layout (written by `synth::write_clip`, documented in docs/DATA.md):
+//! `<root>/clip_<n:06d>/{rgb,depth,flow,dynamic_mask,instance}/<t:06d>.*`, `cameras.json`,
+//! `tracks.json`, `meta.json`. The JSON types live here so writer and reader share them.
+
+use super::{list_frames, read_dir_sorted, window_starts, ClipEntry, GtSource, Scan};
+use crate::clip::{ClipSpec, DepthMap, FrameGt};
+use crate::error::{DataError, Result};
+use crate::exr_io::{read_gray, read_xyz};
+use crate::geom::{Intrinsics, Mat4};
+use crate::resize::Fit;
+use serde::{Deserialize, Serialize};
+use std::path::Path;
+
+pub const CAMERAS_FILE: &str = "cameras.json";
+pub const TRACKS_FILE: &str = "tracks.json";
+pub const META_FILE: &str = "meta.json";
+pub const RGB_DIR: &str = "rgb";
+pub const DEPTH_DIR: &str = "depth";
+pub const FLOW_DIR: &str = "flow";
+pub const MASK_DIR: &str = "dynamic_mask";
+pub const INSTANCE_DIR: &str = "instance";
+
+/// File name of frame `t` with extension `ext`.
+pub fn frame_name(t: usize, ext: &str) -> String {
+    format!("{t:06}.{ext}")
+}
+
+/// One frame's camera in `cameras.json`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CameraRecord {
+    pub t: usize,
+    pub time_s: f64,
+    pub intrinsics: Intrinsics,
+    /// OpenCV world-to-camera, row-major 4x4.
+    pub world_to_camera: Mat4,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CamerasFile {
+    pub width: usize,
+    pub height: usize,
+    pub frames: Vec<CameraRecord>,
+}
+
+/// One object's state at one frame in `tracks.json` (world frame, metres, radians).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct TrackState {
+    pub t: usize,
+    /// Centre of the object's bounding box.
+    pub position: [f64; 3],
+    /// Rotation about world +z (up), 0 = facing world +x.
+    pub yaw: f64,
+    /// Box centre displacement to frame t+1, divided by the frame interval.
+    pub velocity: [f64; 3],
+    /// True when the object moves between t and t+1 (it is in the dynamic mask at t).
+    pub moving: bool,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Track {
+    /// The value of this object's pixels in `instance/*.png` (>= 1).
+    pub id: u16,
+    pub kind: String,
+    /// Box extents (length along heading, width, height) in metres.
+    pub size: [f64; 3],
+    /// How it moves, in words (e.g. "lane change", "braking").
+    pub motion: String,
+    pub states: Vec<TrackState>,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct TracksFile {
+    pub tracks: Vec<Track>,
+}
+
+/// Reads and parses a JSON file, naming it in errors.
+pub fn read_json<T: for<'de> Deserialize<'de>>(path: &Path) -> Result<T> {
+    let text = std::fs::read_to_string(path).map_err(|e| DataError::gt(path, e.to_string()))?;
+    serde_json::from_str(&text).map_err(|e| DataError::gt(path, e.to_string()))
+}
+
+pub fn scan(root: &Path, spec: &ClipSpec, stride: usize) -> Result<Scan> {
+    if stride == 0 {
+        return Err(DataError::config("stride", 0, "must be at least 1"));
+    }
+    let mut scan = Scan::default();
+    let dirs: Vec<_> = read_dir_sorted(root)?
+        .into_iter()
+        .filter(|p| p.join(CAMERAS_FILE).is_file())
+        .collect();
+    if dirs.is_empty() {
+        return Err(DataError::EmptyFolder {
+            path: root.to_path_buf(),
+        });
+    }
+    for dir in dirs {
+        let name = dir
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        let frames = match list_frames(&dir.join(RGB_DIR)) {
+            Ok(f) => f,
+            Err(e) => {
+                scan.skipped.push(e.to_string());
+                continue;
+            }
+        };
+        let starts = window_starts(frames.len(), spec.num_frames(), stride);
+        if starts.is_empty() {
+            let err = DataError::TooFewFrames {
+                path: dir.join(RGB_DIR),
+                found: frames.len(),
+                needed: spec.num_frames(),
+            };
+            scan.skipped.push(err.to_string());
+        }
+        for s in starts {
+            let indices: Vec<usize> = (s..s + spec.num_frames()).collect();
+            scan.entries.push(ClipEntry {
+                id: format!("{name}@{s}"),
+                group: name.clone(),
+                frames: frames[s..s + spec.num_frames()].to_vec(),
+                gt: GtSource::Synth {
+                    clip_dir: dir.clone(),
+                    indices,
+                },
+            });
+        }
+    }
+    Ok(scan)
+}
+
+/// Cameras, depth and flow of the given frames of a synthetic clip.
+pub fn load_synth_gt(
+    dir: &Path,
+    indices: &[usize],
+    source_size: (usize, usize),
+    fit: &Fit,
+) -> Result<Vec<FrameGt>> {
+    let cams_path = dir.join(CAMERAS_FILE);
+    let cams: CamerasFile = read_json(&cams_path)?;
+    if (cams.height, cams.width) != source_size {
+        return Err(DataError::gt(
+            &cams_path,
+            format!(
+                "cameras are for {}x{} (WxH) but the frames are {}x{}",
+                cams.width, cams.height, source_size.1, source_size.0
+            ),
+        ));
+    }
+    let mut out = Vec::with_capacity(indices.len());
+    for &t in indices {
+        let cam = cams
+            .frames
+            .iter()
+            .find(|c| c.t == t)
+            .ok_or_else(|| DataError::gt(&cams_path, format!("no camera for frame t = {t}")))?;
+        let depth_path = dir.join(DEPTH_DIR).join(frame_name(t, "exr"));
+        let depth = read_gray(&depth_path)?;
+        let flow = read_xyz(&dir.join(FLOW_DIR).join(frame_name(t, "exr")))?;
+        if (depth.height, depth.width) != source_size {
+            return Err(DataError::gt(
+                &depth_path,
+                "depth size differs from the frame size",
+            ));
+        }
+        out.push(FrameGt {
+            intrinsics: Some(fit.intrinsics(&cam.intrinsics, source_size)),
+            world_to_camera: Some(cam.world_to_camera),
+            ego_to_world: None,
+            depth: Some(DepthMap {
+                map: depth,
+                intrinsics: cam.intrinsics,
+            }),
+            flow: Some(flow),
+        });
+    }
+    Ok(out)
+}

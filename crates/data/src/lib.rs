@@ -1,0 +1,32 @@
+//! `envision4d-data`: clip datasets (plain frame folders, the Waymo/STORM layout, our
+//! synthetic layout), image decoding and fitting, deterministic splits, prefetch, and a
+//! ray-traced synthetic driving world with exact ground truth (`synth`).
+//!
+//! The crate stands alone: it depends on no other envision4d crate and not on burn. Images
+//! are plain `Vec<f32>` (HWC, RGB in [0, 1]); the training crate makes tensors of them.
+//! The synthetic world has its own ray tracer because it judges our rasterizer.
+
+pub mod atomic;
+pub mod clip;
+pub mod dataset;
+pub mod error;
+pub mod exr_io;
+pub mod frame;
+pub mod geom;
+pub mod layout;
+pub mod npy;
+pub mod prefetch;
+pub mod resize;
+pub mod rng;
+pub mod split;
+pub mod synth;
+
+pub use clip::{Clip, ClipSpec, DepthMap, FrameGt};
+pub use dataset::{ClipDataset, DatasetConfig, Layout};
+pub use error::{DataError, Result};
+pub use frame::{decode_image, Image};
+pub use geom::{Intrinsics, Mat4, Vec3};
+pub use layout::waymo::WaymoConfig;
+pub use prefetch::Prefetcher;
+pub use resize::{Fit, FitMode, MODEL_SIZE};
+pub use split::{Split, SplitRatios};
