@@ -4,6 +4,8 @@
 
 mod backend_choice;
 mod image_out;
+mod model_config;
+mod render_cmd;
 mod splat_cmd;
 mod synth_cmd;
 
@@ -27,6 +29,8 @@ enum Command {
     Splat(splat_cmd::SplatArgs),
     /// Render synthetic driving clips with exact ground truth (ray-traced).
     Synth(synth_cmd::SynthArgs),
+    /// Run Envision4D on context frames and export its predictions (poses, depth, Gaussians, motion).
+    Render(render_cmd::RenderArgs),
 }
 
 /// An error caused by the user's input (exit code 2) rather than by the program.
@@ -39,6 +43,7 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Splat(args) => splat_cmd::run(args),
         Command::Synth(args) => synth_cmd::run(args),
+        Command::Render(args) => render_cmd::run(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

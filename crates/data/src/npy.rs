@@ -58,7 +58,11 @@ pub fn parse_npy_f32(bytes: &[u8]) -> std::result::Result<NpyF32, String> {
                 .map_err(|_| format!("bad shape entry {s:?}"))
         })
         .collect::<std::result::Result<_, _>>()?;
-    let count: usize = shape.iter().product();
+    let count = shape
+        .iter()
+        .try_fold(1usize, |acc, &d| acc.checked_mul(d))
+        .and_then(|c| c.checked_mul(4).map(|_| c))
+        .ok_or_else(|| format!("shape {shape:?} is too large"))?;
     let body = &bytes[data_start..];
     if body.len() < count * 4 {
         return Err(format!(

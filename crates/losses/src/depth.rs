@@ -126,7 +126,7 @@ fn fit_scale(alignment: DepthAlignment, pairs: &[(f64, f64)]) -> Result<f64> {
                     "median of the predicted depth is 0; cannot align".into(),
                 ));
             }
-            Ok(mg / mp)
+            positive_scale(mg / mp)
         }
         DepthAlignment::LeastSquares => {
             let pp: f64 = pairs.iter().map(|(p, _)| p * p).sum();
@@ -136,8 +136,21 @@ fn fit_scale(alignment: DepthAlignment, pairs: &[(f64, f64)]) -> Result<f64> {
                     "predicted depth is 0 on every valid pixel; cannot align".into(),
                 ));
             }
-            Ok(pg / pp)
+            positive_scale(pg / pp)
         }
+    }
+}
+
+/// A depth scale must be finite and positive: a zero or negative one (prediction anti-
+/// correlated with the ground truth) would give a plausible-looking but meaningless RMSE.
+fn positive_scale(s: f64) -> Result<f64> {
+    if s.is_finite() && s > 0.0 {
+        Ok(s)
+    } else {
+        Err(LossError::Invalid {
+            what: "depth alignment",
+            reason: format!("alignment scale {s} is not finite and positive; the prediction does not fit the ground truth"),
+        })
     }
 }
 

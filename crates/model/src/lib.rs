@@ -13,6 +13,7 @@ pub use model::Envision4d;
 pub mod adapter;
 pub mod aggregator;
 pub mod camera_head;
+pub mod checkpoint;
 pub mod dino;
 pub mod dpt;
 pub mod future;

@@ -24,7 +24,13 @@ pub struct Envision4d {
     pub temporal_layers: [usize; 4],
     pub scale_min: f64,
     pub scale_max: f64,
+    /// Frames per DPT-head pass (memory bound; results do not depend on it).
+    pub dpt_frame_chunk: usize,
 }
+
+/// Default frames per DPT-head pass: one full-resolution frame at a time keeps the paper-size
+/// model's CPU inference well inside 24 GiB.
+pub const DEFAULT_DPT_FRAME_CHUNK: usize = 1;
 
 /// Which heads a forward pass runs ("leave out what a command does not need").
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -96,6 +102,7 @@ impl Envision4d {
             temporal_layers: cfg.temporal_layers,
             scale_min: cfg.gaussian_scale_min,
             scale_max: cfg.gaussian_scale_max,
+            dpt_frame_chunk: DEFAULT_DPT_FRAME_CHUNK,
         }
     }
 
@@ -107,21 +114,24 @@ impl Envision4d {
         let agg = &backbone.aggregator;
         let taps: [Tensor<4>; 4] = taps_idx.map(|l| agg.layer(l));
         let (depth, depth_conf) = if heads.depth {
-            let (d, c) =
-                depth_activation(
-                    self.depth_head
-                        .forward_raw(&taps, agg.patch_start, [h, w], None),
-                );
+            let (d, c) = depth_activation(self.depth_head.forward_chunked(
+                &taps,
+                agg.patch_start,
+                [h, w],
+                None,
+                self.dpt_frame_chunk,
+            ));
             (Some(d), Some(c))
         } else {
             (None, None)
         };
         let gaussians = heads.gaussians.then(|| {
-            self.gs_head.forward_raw(
+            self.gs_head.forward_chunked(
                 &taps,
                 agg.patch_start,
                 [h, w],
                 Some(agg.norm_images.clone()),
+                self.dpt_frame_chunk,
             )
         });
         let (motion_enc, motion_tokens) = if heads.motion {
@@ -134,7 +144,13 @@ impl Envision4d {
             });
             // Lifted maps carry patch tokens only, so they start at index 0.
             (
-                Some(self.motion_head.forward_raw(&lifted, 0, [h, w], None)),
+                Some(self.motion_head.forward_chunked(
+                    &lifted,
+                    0,
+                    [h, w],
+                    None,
+                    self.dpt_frame_chunk,
+                )),
                 Some(lifted),
             )
         } else {

@@ -74,6 +74,21 @@ pub const KEY_RENAMES: &[(&str, &str)] = &[
     (r"\.resConfUnit(\d)\.", ".res_conf_unit${1}."),
 ];
 
+/// The inverse of [`KEY_RENAMES`]: our parameter paths back to official names (for saving).
+pub const KEY_RENAMES_BACK: &[(&str, &str)] = &[
+    (r"^future\.", ""),
+    (r"(^|\.)pose_ln_modulation\.", "${1}poseLN_modulation.1."),
+    (r"(^|\.)time_embedding\.fc1\.", "${1}time_embedding.0."),
+    (r"(^|\.)time_embedding\.fc2\.", "${1}time_embedding.2."),
+    (r"(^|\.)output_conv2\.conv1\.", "${1}output_conv2.0."),
+    (r"(^|\.)output_conv2\.conv2\.", "${1}output_conv2.2."),
+    (r"(^|\.)input_merger\.", "${1}input_merger.0."),
+    (r"(^|\.)resize0\.", "${1}resize_layers.0."),
+    (r"(^|\.)resize1\.", "${1}resize_layers.1."),
+    (r"(^|\.)resize3\.", "${1}resize_layers.3."),
+    (r"\.res_conf_unit(\d)\.", ".resConfUnit${1}."),
+];
+
 /// Our name of an official (prefix-stripped) key.
 pub fn rename_key(key: &str) -> String {
     static RULES: std::sync::OnceLock<Vec<(regex::Regex, &'static str)>> =
@@ -89,6 +104,55 @@ pub fn rename_key(key: &str) -> String {
     })
 }
 
+/// Checkpoint file formats, chosen by extension.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Format {
+    /// `.safetensors` (our own checkpoints, exported official weights, fixtures).
+    Safetensors,
+    /// PyTorch pickles: `.pt`, `.pth`, `.bin`, and Lightning `.ckpt` (weights under `state_dict`).
+    PyTorch,
+}
+
+impl Format {
+    pub fn from_path(path: &Path) -> Result<Format, LoadError> {
+        let ext = path
+            .extension()
+            .and_then(|e| e.to_str())
+            .map(str::to_ascii_lowercase)
+            .unwrap_or_default();
+        match ext.as_str() {
+            "safetensors" => Ok(Format::Safetensors),
+            "pt" | "pth" | "bin" | "ckpt" => Ok(Format::PyTorch),
+            other => Err(LoadError::Read { path: path.to_path_buf(), message: format!("unknown checkpoint extension {other:?}: use .safetensors, .pt, .pth, .bin or .ckpt") }),
+        }
+    }
+}
+
+/// Lightning checkpoints keep the weights under this top-level key.
+pub const LIGHTNING_STATE_DICT: &str = "state_dict";
+
+/// Tensor names of a checkpoint (for PyTorch files, under `state_dict` when present).
+pub fn checkpoint_keys(path: &Path) -> Result<Vec<String>, LoadError> {
+    match Format::from_path(path)? {
+        Format::Safetensors => header_names(path),
+        Format::PyTorch => {
+            use burn::store::pytorch_reader::PytorchReader;
+            let reader = PytorchReader::with_top_level_key(path, LIGHTNING_STATE_DICT)
+                .or_else(|_| PytorchReader::new(path))
+                .map_err(|e| LoadError::Read {
+                    path: path.to_path_buf(),
+                    message: format!("not a readable PyTorch checkpoint: {e}"),
+                })?;
+            Ok(reader.keys())
+        }
+    }
+}
+
+fn has_state_dict(path: &Path) -> bool {
+    burn::store::pytorch_reader::PytorchReader::with_top_level_key(path, LIGHTNING_STATE_DICT)
+        .is_ok()
+}
+
 pub fn load_safetensors<M: Module + ModuleSnapshot>(
     module: &mut M,
     path: &Path,
@@ -96,32 +160,74 @@ pub fn load_safetensors<M: Module + ModuleSnapshot>(
     missing: Missing,
     unexpected: Unexpected,
 ) -> Result<LoadReport, LoadError> {
-    let under_prefix = header_names(path)?
+    load_weights(module, path, prefix, missing, unexpected)
+}
+
+/// Loads `module`'s parameters from `path` (any [`Format`]), using only the tensors whose
+/// names start with `prefix` (stripped) and renaming them with [`KEY_RENAMES`].
+pub fn load_weights<M: Module + ModuleSnapshot>(
+    module: &mut M,
+    path: &Path,
+    prefix: &str,
+    missing: Missing,
+    unexpected: Unexpected,
+) -> Result<LoadReport, LoadError> {
+    let read_err = |message: String| LoadError::Read {
+        path: path.to_path_buf(),
+        message,
+    };
+    let under_prefix = checkpoint_keys(path)?
         .into_iter()
         .filter_map(|n| n.strip_prefix(prefix).map(rename_key))
         .collect::<std::collections::HashSet<String>>();
     let pattern = format!("^{}(.*)$", regex_escape(prefix));
     let mut remap = KeyRemapper::new()
         .add_pattern(&pattern, "$1")
-        .map_err(|e| LoadError::Read {
-            path: path.to_path_buf(),
-            message: format!("bad prefix {prefix:?}: {e}"),
-        })?;
+        .map_err(|e| read_err(format!("bad prefix {prefix:?}: {e}")))?;
     for (from, to) in KEY_RENAMES {
-        remap = remap.add_pattern(*from, *to).map_err(|e| LoadError::Read {
-            path: path.to_path_buf(),
-            message: format!("bad rename {from}: {e}"),
-        })?;
+        remap = remap
+            .add_pattern(*from, *to)
+            .map_err(|e| read_err(format!("bad rename {from}: {e}")))?;
     }
-    let mut store = SafetensorsStore::from_file(path)
-        .remap(remap)
-        .with_from_adapter(PyTorchToBurnAdapter)
-        .allow_partial(true);
-    let result = module.load_from(&mut store).map_err(|e| LoadError::Read {
-        path: path.to_path_buf(),
-        message: format!("{e:?}"),
-    })?;
+    // `validate(false)`: shape mismatches come back in `ApplyResult::errors` (the tensor is
+    // not applied either way) so they can be reported with the missing and unexpected keys.
+    let result = match Format::from_path(path)? {
+        Format::Safetensors => {
+            let mut store = SafetensorsStore::from_file(path)
+                .remap(remap)
+                .with_from_adapter(PyTorchToBurnAdapter)
+                .allow_partial(true)
+                .validate(false);
+            module
+                .load_from(&mut store)
+                .map_err(|e| read_err(format!("{e:?}")))?
+        }
+        Format::PyTorch => {
+            // Our Sequential renames need the original indices: no contiguous renumbering.
+            let mut store = burn::store::PytorchStore::from_file(path)
+                .remap(remap)
+                .allow_partial(true)
+                .validate(false)
+                .map_indices_contiguous(false);
+            if has_state_dict(path) {
+                store = store.with_top_level_key(LIGHTNING_STATE_DICT);
+            }
+            module
+                .load_from(&mut store)
+                .map_err(|e| read_err(format!("{e:?}")))?
+        }
+    };
+    summarise(path, prefix, result, &under_prefix, missing, unexpected)
+}
 
+fn summarise(
+    path: &Path,
+    prefix: &str,
+    result: burn::store::ApplyResult,
+    under_prefix: &std::collections::HashSet<String>,
+    missing: Missing,
+    unexpected: Unexpected,
+) -> Result<LoadReport, LoadError> {
     let mut report = String::new();
     for e in &result.errors {
         let line = match e {
@@ -171,6 +277,30 @@ const MAX_HEADER_BYTES: u64 = 64 << 20;
 
 /// Tensor names in a safetensors file, read from its header only.
 pub fn header_names(path: &Path) -> Result<Vec<String>, LoadError> {
+    Ok(read_header(path)?
+        .into_iter()
+        .map(|(k, _)| k)
+        .filter(|k| k != "__metadata__")
+        .collect())
+}
+
+/// The string metadata (`__metadata__`) of a safetensors file.
+pub fn header_metadata(
+    path: &Path,
+) -> Result<std::collections::HashMap<String, String>, LoadError> {
+    let header = read_header(path)?;
+    Ok(header
+        .get("__metadata__")
+        .and_then(|m| m.as_object())
+        .map(|m| {
+            m.iter()
+                .filter_map(|(k, v)| v.as_str().map(|v| (k.clone(), v.to_string())))
+                .collect()
+        })
+        .unwrap_or_default())
+}
+
+fn read_header(path: &Path) -> Result<serde_json::Map<String, serde_json::Value>, LoadError> {
     use std::io::Read;
     let read_err = |message: String| LoadError::Read {
         path: path.to_path_buf(),
@@ -189,13 +319,8 @@ pub fn header_names(path: &Path) -> Result<Vec<String>, LoadError> {
     let mut header = vec![0u8; n as usize];
     f.read_exact(&mut header)
         .map_err(|e| read_err(format!("truncated safetensors header: {e}")))?;
-    let map: serde_json::Map<String, serde_json::Value> = serde_json::from_slice(&header)
-        .map_err(|e| read_err(format!("corrupt safetensors header: {e}")))?;
-    Ok(map
-        .into_iter()
-        .map(|(k, _)| k)
-        .filter(|k| k != "__metadata__")
-        .collect())
+    serde_json::from_slice(&header)
+        .map_err(|e| read_err(format!("corrupt safetensors header: {e}")))
 }
 
 fn regex_escape(s: &str) -> String {

@@ -51,6 +51,14 @@ pub fn scan(root: &Path, spec: &ClipSpec, cfg: &WaymoConfig) -> Result<Scan> {
     if cfg.interval == 0 {
         return Err(DataError::config("interval", 0, "must be at least 1"));
     }
+    // The official clip is `interval` frames long; a longer clip would read into the next.
+    if spec.num_frames() > cfg.interval {
+        return Err(DataError::config(
+            "num_frames",
+            spec.num_frames(),
+            format!("must not exceed the clip interval {}", cfg.interval),
+        ));
+    }
     let split_dir = root.join(&cfg.split);
     let mut scan = Scan::default();
     let scenes = read_dir_sorted(&split_dir)?;
@@ -101,7 +109,10 @@ fn scene_clips(
     };
     // The official loader lists range(min, max): the last timestep is excluded. A gap in
     // the range becomes a path that does not exist, so that clip fails at load time.
-    let timesteps: Vec<i64> = (t_min..t_max).collect();
+    // Only the span the clips can reach is materialised: a stray file with a huge timestamp
+    // must not make this list (and memory) explode.
+    let reach = (cfg.clips_per_scene.saturating_sub(1) * cfg.interval + spec.num_frames()) as i64;
+    let timesteps: Vec<i64> = (t_min..t_max.min(t_min.saturating_add(reach))).collect();
     let path_of = |t: i64| {
         by_t.get(&t)
             .cloned()

@@ -129,6 +129,36 @@ impl DptHead {
         }
     }
 
+    /// Like [`DptHead::forward_raw`], `frame_chunk` frames at a time: every frame is processed
+    /// independently by the head, so chunking is exact and bounds the full-resolution
+    /// activations (a 3x3 conv at 350x518x256 needs ~1.7 GB of im2col per frame on CPU).
+    pub fn forward_chunked(
+        &self,
+        taps: &[Tensor<4>; 4],
+        patch_start: usize,
+        image_hw: [usize; 2],
+        images: Option<Tensor<5>>,
+        frame_chunk: usize,
+    ) -> Tensor<5> {
+        let [b, s, p, d] = taps[0].dims();
+        let chunk = frame_chunk.max(1);
+        if s <= chunk {
+            return self.forward_raw(taps, patch_start, image_hw, images);
+        }
+        let mut parts = Vec::with_capacity(s.div_ceil(chunk));
+        for s0 in (0..s).step_by(chunk) {
+            let s1 = (s0 + chunk).min(s);
+            let sub: [Tensor<4>; 4] =
+                std::array::from_fn(|k| taps[k].clone().slice([0..b, s0..s1, 0..p, 0..d]));
+            let img = images.as_ref().map(|i| {
+                let [_, _, c, h, w] = i.dims();
+                i.clone().slice([0..b, s0..s1, 0..c, 0..h, 0..w])
+            });
+            parts.push(self.forward_raw(&sub, patch_start, image_hw, img));
+        }
+        Tensor::cat(parts, 1)
+    }
+
     /// `taps`: four `[B, S, P, dim_in]` token tensors whose patch tokens start at
     /// `patch_start`; `image_hw` the input image size; `images` (`[B, S, 3, H, W]`,
     /// normalised) only for the Gaussian head. Returns the raw `[B, S, H, W, out]` prediction.

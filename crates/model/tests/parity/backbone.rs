@@ -315,3 +315,68 @@ fn tiny_full_forward_matches_reference() {
         OUT_ABS,
     );
 }
+
+/// Guards the tiny model's remaining intermediates: the aggregator's DINO outputs, the RoPE
+/// positions of the 5 special tokens and the patches, and the time sinusoid.
+#[test]
+fn tiny_intermediates_match_reference() {
+    let fx = Fixture::open("envision4d_tiny.safetensors");
+    let device = Device::flex();
+    let cfg = ModelConfig::tiny();
+    let mut model = Envision4d::new(&cfg, &device);
+    load_safetensors(
+        &mut model,
+        &fx.path,
+        "weights/",
+        Missing::Reject,
+        Unexpected::Reject,
+    )
+    .unwrap_or_else(|e| panic!("{e}"));
+    let norm =
+        envision4d_model::aggregator::normalize_images(fx.tensor::<5>("input/images", &device));
+    let [b, s, c, h, w] = norm.dims();
+    let dino = model
+        .aggregator
+        .patch_embed
+        .forward(norm.reshape([b * s, c, h, w]));
+    let e = |k: &str| fx.f32s(&format!("expected/aggregator/{k}"));
+    assert_close(
+        "dino patch",
+        flat(dino.patch_tokens),
+        &e("dino_x_norm_patchtokens"),
+        AGG_REL,
+        0.0,
+    );
+    assert_close(
+        "dino cls",
+        flat(dino.cls_token),
+        &e("dino_x_norm_clstoken"),
+        AGG_REL,
+        0.0,
+    );
+    assert_close(
+        "dino regs",
+        flat(dino.reg_tokens),
+        &e("dino_x_norm_regtokens"),
+        AGG_REL,
+        0.0,
+    );
+    let pos = envision4d_model::layers::frame_positions(5, 4, 6);
+    let want = fx.i64s("expected/aggregator/pos");
+    for f in 0..2 {
+        let got: Vec<i64> = pos.iter().flat_map(|p| p.to_vec()).collect();
+        assert_eq!(
+            got,
+            want[f * 58..(f + 1) * 58].to_vec(),
+            "positions of frame {f}"
+        );
+    }
+    let sin = Tensor::<1>::from_floats(sinusoid(&[0.0, 1.0, 2.0, 3.0], 256).as_slice(), &device);
+    assert_close(
+        "time_sinusoid",
+        sin,
+        &fx.f32s("expected/extra/time_sinusoid"),
+        UNIT_REL,
+        UNIT_ABS,
+    );
+}

@@ -3,6 +3,7 @@
 
 mod adapter;
 mod backbone;
+mod checkpoint;
 mod fixture;
 mod heads;
 mod layers;

@@ -1,0 +1,173 @@
+//! `envision4d render --export-predictions` end to end: parity with the reference through the
+//! binary, real frame folders, and bad inputs (exit code 2, named problem).
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn fixture() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../../../shared/fixtures/envision4d_tiny.safetensors")
+}
+
+fn render(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_envision4d"))
+        .arg("render")
+        .args(args)
+        .output()
+        .expect("run envision4d")
+}
+
+fn read_f32(bytes: &[u8], key: &str) -> (Vec<usize>, Vec<f32>) {
+    let st = safetensors::SafeTensors::deserialize(bytes).unwrap();
+    let t = st.tensor(key).unwrap_or_else(|_| panic!("missing {key}"));
+    (
+        t.shape().to_vec(),
+        t.data()
+            .chunks_exact(4)
+            .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+            .collect(),
+    )
+}
+
+/// Guards the CLI's prediction export: with the fixture's weights and exact float input, every
+/// exported tensor equals the reference's under the fixture's key names.
+#[test]
+fn exported_predictions_match_reference() {
+    let fx = fixture();
+    assert!(fx.is_file(), "fixture {} is required", fx.display());
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("preds.safetensors");
+    let input = format!("{}:input/images", fx.display());
+    let o = render(&[
+        "--weights",
+        fx.to_str().unwrap(),
+        "--weights-prefix",
+        "weights/",
+        "--model-config",
+        "tiny",
+        "--input-tensor",
+        &input,
+        "--export-predictions",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let got = std::fs::read(&out).unwrap();
+    let want = std::fs::read(&fx).unwrap();
+    for key in [
+        "pose_enc",
+        "depth",
+        "depth_conf",
+        "gaussians",
+        "motion_enc",
+        "adapter/extrinsics",
+        "adapter/intrinsics",
+        "adapter/means",
+        "adapter/scales",
+        "adapter/rotations",
+        "adapter/colors",
+        "adapter/opacities",
+        "adapter/motions",
+    ] {
+        let (gs, g) = read_f32(&got, key);
+        let (ws, w) = read_f32(&want, &format!("expected/{key}"));
+        assert_eq!(gs, ws, "{key} shape");
+        let scale = w.iter().fold(0.0f32, |m, v| m.max(v.abs()));
+        let worst = g
+            .iter()
+            .zip(&w)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0f32, f32::max);
+        assert!(
+            worst <= 1e-4 * scale + 1e-5,
+            "{key}: max diff {worst} (max|ref| {scale})"
+        );
+    }
+}
+
+fn write_png(path: &Path, w: u32, h: u32, seed: u8) {
+    let img = image::RgbImage::from_fn(w, h, |x, y| {
+        image::Rgb([
+            (x as u8).wrapping_mul(3).wrapping_add(seed),
+            (y as u8).wrapping_mul(5),
+            seed,
+        ])
+    });
+    img.save(path).unwrap();
+}
+
+/// Guards the frame-folder path: real PNGs of another size are resized (with a note) and the
+/// export has the model's shapes; too few frames and a missing config are exit-2 errors.
+#[test]
+fn frame_folder_and_bad_inputs() {
+    let fx = fixture();
+    let dir = tempfile::tempdir().unwrap();
+    let frames = dir.path().join("frames");
+    std::fs::create_dir(&frames).unwrap();
+    write_png(&frames.join("frame_000000.png"), 100, 70, 10);
+    write_png(&frames.join("frame_000001.png"), 100, 70, 90);
+    let out = dir.path().join("p.safetensors");
+    let base = [
+        "--weights",
+        fx.to_str().unwrap(),
+        "--weights-prefix",
+        "weights/",
+        "--model-config",
+        "tiny",
+        "--export-predictions",
+        out.to_str().unwrap(),
+    ];
+    let mut args = base.to_vec();
+    args.extend(["--frames", frames.to_str().unwrap()]);
+    let o = render(&args);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("resized"));
+    let (shape, _) = read_f32(&std::fs::read(&out).unwrap(), "adapter/means");
+    assert_eq!(shape, vec![1, 2, 56 * 84, 3]);
+
+    let one = dir.path().join("one");
+    std::fs::create_dir(&one).unwrap();
+    write_png(&one.join("a.png"), 84, 56, 1);
+    let mut args = base.to_vec();
+    args.extend(["--frames", one.to_str().unwrap()]);
+    let o = render(&args);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("need 2 context frames"));
+
+    let o = render(&[
+        "--weights",
+        fx.to_str().unwrap(),
+        "--frames",
+        frames.to_str().unwrap(),
+        "--export-predictions",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--model-config"));
+
+    // A config whose widths do not fit the weights: every mis-shaped key is listed.
+    let toml = dir.path().join("m.toml");
+    std::fs::write(
+        &toml,
+        "[model]\npreset = \"tiny\"\n[model.dpt]\nfeatures = 16\nout_channels = [16, 32, 64, 64]\n",
+    )
+    .unwrap();
+    let o = render(&[
+        "--weights",
+        fx.to_str().unwrap(),
+        "--weights-prefix",
+        "weights/",
+        "--model-config",
+        toml.to_str().unwrap(),
+        "--frames",
+        frames.to_str().unwrap(),
+        "--export-predictions",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(
+        String::from_utf8_lossy(&o.stderr)
+            .matches("mis-shaped")
+            .count()
+            > 10
+    );
+}

@@ -1,0 +1,139 @@
+//! Model checkpoints: the official Envision4D release (Lightning `.ckpt`, weights under
+//! `state_dict` with the `encoder.backbone.` prefix, or the same exported to safetensors),
+//! VGGT-1B's `model.pt` for initialising training, and our own safetensors checkpoints, which
+//! use the official names and carry their model config in the metadata.
+
+use crate::config::ModelConfig;
+use crate::model::Envision4d;
+use crate::weights::{
+    checkpoint_keys, header_metadata, load_weights, LoadError, LoadReport, Missing, Unexpected,
+    KEY_RENAMES_BACK,
+};
+use burn::store::{BurnToPyTorchAdapter, KeyRemapper, ModuleSnapshot, SafetensorsStore};
+use std::path::{Path, PathBuf};
+
+/// Prefix of the model's keys inside the released Lightning checkpoint.
+pub const RELEASE_PREFIX: &str = "encoder.backbone.";
+/// Metadata key holding the model config (JSON) in our checkpoints.
+pub const CONFIG_METADATA_KEY: &str = "envision4d_model_config";
+
+/// What a checkpoint is expected to contain.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum CheckpointKind {
+    /// Every parameter of Envision4D, nothing else (release checkpoints, our own).
+    Full,
+    /// VGGT-1B: aggregator, camera and depth heads. Envision4D's new modules (temporal blocks,
+    /// future-pose module, Gaussian and motion heads) keep their fresh initialisation; the
+    /// point and track heads are ignored.
+    Vggt1bInit,
+}
+
+/// Envision4D parameters that VGGT-1B does not have.
+fn is_new_module(key: &str) -> bool {
+    key.starts_with("aggregator.time_blocks.")
+        || key.starts_with("future.")
+        || key.starts_with("gs_head.")
+        || key.starts_with("motion_head.")
+}
+
+/// The key prefix of a checkpoint: `encoder.backbone.` for the release, none otherwise.
+pub fn detect_prefix(path: &Path) -> Result<String, LoadError> {
+    let keys = checkpoint_keys(path)?;
+    Ok(if keys.iter().any(|k| k.starts_with(RELEASE_PREFIX)) {
+        RELEASE_PREFIX.to_string()
+    } else {
+        String::new()
+    })
+}
+
+/// Loads `path` into `model`, with one error listing every missing, unexpected or
+/// mis-shaped key.
+pub fn load_checkpoint(
+    model: &mut Envision4d,
+    path: &Path,
+    kind: CheckpointKind,
+) -> Result<LoadReport, LoadError> {
+    let prefix = detect_prefix(path)?;
+    match kind {
+        CheckpointKind::Full => {
+            load_weights(model, path, &prefix, Missing::Reject, Unexpected::Reject)
+        }
+        CheckpointKind::Vggt1bInit => {
+            let report = load_weights(model, path, &prefix, Missing::KeepInit, Unexpected::Ignore)?;
+            let absent: Vec<&String> = report
+                .kept_init
+                .iter()
+                .filter(|k| !is_new_module(k))
+                .collect();
+            if !absent.is_empty() {
+                let list = absent
+                    .iter()
+                    .map(|k| format!("  missing: {prefix}{k}"))
+                    .collect::<Vec<_>>()
+                    .join("\n");
+                return Err(LoadError::Mismatch { path: path.to_path_buf(), report: format!("{list}\n(a VGGT-1B checkpoint must provide the aggregator, camera head and depth head)") });
+            }
+            Ok(report)
+        }
+    }
+}
+
+/// The model config stored in one of our checkpoints (`None` for files without one).
+pub fn checkpoint_config(path: &Path) -> Result<Option<ModelConfig>, LoadError> {
+    let meta = header_metadata(path)?;
+    let Some(json) = meta.get(CONFIG_METADATA_KEY) else {
+        return Ok(None);
+    };
+    let cfg: ModelConfig = serde_json::from_str(json).map_err(|e| LoadError::Read {
+        path: path.to_path_buf(),
+        message: format!("bad model config in metadata: {e}"),
+    })?;
+    cfg.validate().map_err(|e| LoadError::Read {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    })?;
+    Ok(Some(cfg))
+}
+
+/// Saves `model` as safetensors under the official parameter names (PyTorch layouts), with
+/// `config` in the metadata. Written to a temporary file then renamed, so an existing
+/// checkpoint is never left half-written.
+pub fn save_checkpoint(
+    model: &Envision4d,
+    config: &ModelConfig,
+    path: &Path,
+) -> Result<(), LoadError> {
+    let err = |message: String| LoadError::Read {
+        path: path.to_path_buf(),
+        message,
+    };
+    let mut remap = KeyRemapper::new();
+    for (from, to) in KEY_RENAMES_BACK {
+        remap = remap
+            .add_pattern(*from, *to)
+            .map_err(|e| err(format!("bad rename {from}: {e}")))?;
+    }
+    let json = serde_json::to_string(config).map_err(|e| err(e.to_string()))?;
+    let tmp = temp_path(path);
+    let mut store = SafetensorsStore::from_file(&tmp)
+        .with_to_adapter(BurnToPyTorchAdapter)
+        .remap(remap)
+        .metadata(CONFIG_METADATA_KEY, json)
+        .overwrite(true);
+    if let Err(e) = model.save_into(&mut store) {
+        let _ = std::fs::remove_file(&tmp);
+        return Err(err(format!("writing checkpoint: {e:?}")));
+    }
+    std::fs::rename(&tmp, path).map_err(|e| {
+        let _ = std::fs::remove_file(&tmp);
+        err(format!("moving checkpoint into place: {e}"))
+    })
+}
+
+fn temp_path(path: &Path) -> PathBuf {
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().to_string())
+        .unwrap_or_default();
+    path.with_file_name(format!(".{name}.tmp-{}", std::process::id()))
+}
