@@ -123,4 +123,22 @@ mod tests {
         assert!(err.contains("truncated"), "{err}");
         assert!(parse_npy_f32(b"garbage").is_err());
     }
+
+    /// Guards a crafted header whose shape product overflows: an error, not a wrapped count
+    /// that passes the length check and panics later.
+    #[test]
+    fn overflowing_shape_is_rejected() {
+        let dict = "{'descr': '<f4', 'fortran_order': False, 'shape': (4294967296, 4294967296), }";
+        let mut header = dict.to_string();
+        while (10 + header.len() + 1) % 64 != 0 {
+            header.push(' ');
+        }
+        header.push('\n');
+        let mut bytes = b"\x93NUMPY\x01\x00".to_vec();
+        bytes.extend_from_slice(&(header.len() as u16).to_le_bytes());
+        bytes.extend_from_slice(header.as_bytes());
+        bytes.extend_from_slice(&[0u8; 16]);
+        let err = parse_npy_f32(&bytes).unwrap_err();
+        assert!(err.contains("too large") || err.contains("header"), "{err}");
+    }
 }

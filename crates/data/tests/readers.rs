@@ -225,6 +225,29 @@ fn waymo_layout_clips() {
     assert!(err.contains("000012_0.png"), "{err}");
 }
 
+/// Guards a stray file with a huge timestamp: the scene must still scan without materialising
+/// every timestep up to it (which exhausted memory).
+#[test]
+fn waymo_stray_huge_timestamp_is_harmless() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("validation/000/images");
+    for t in 0..10 {
+        write_png(&scene.join(format!("{t:06}_0.png")), 8, 6, t as u8);
+    }
+    write_png(&scene.join("99999999999999_0.png"), 8, 6, 0);
+    let cfg = WaymoConfig {
+        interval: 5,
+        ..WaymoConfig::default()
+    };
+    let ds = ClipDataset::open(dir.path(), config(Layout::Waymo(cfg), 6, 8)).unwrap();
+    // As the official loader (range(min, max)), the gap up to the stray file yields clips
+    // whose missing frames fail at load time; only the span 10 clips can reach is listed.
+    assert_eq!(ds.len(), 10);
+    assert!(ds.load(0).is_ok() && ds.load(1).is_ok());
+    let err = ds.load(2).unwrap_err().to_string();
+    assert!(err.contains("000010_0.png"), "{err}");
+}
+
 /// Guards STORM ground truth: {t:03d} JPEG names, intrinsics scaled with the resize, the
 /// OpenCV world-to-camera built as inv(ego_to_world . cam_to_ego . OPENCV2DATASET), LiDAR
 /// depth from depth_flows_4 channel 0, and an unreadable GT file named in the error.

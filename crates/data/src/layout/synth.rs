@@ -84,10 +84,18 @@ pub fn scan(root: &Path, spec: &ClipSpec, stride: usize) -> Result<Scan> {
         return Err(DataError::config("stride", 0, "must be at least 1"));
     }
     let mut scan = Scan::default();
-    let dirs: Vec<_> = read_dir_sorted(root)?
+    // cameras.json is written last: a clip folder without it is incomplete. Count it as a
+    // skipped clip rather than ignoring it silently.
+    let (dirs, incomplete): (Vec<_>, Vec<_>) = read_dir_sorted(root)?
         .into_iter()
-        .filter(|p| p.join(CAMERAS_FILE).is_file())
-        .collect();
+        .filter(|p| p.is_dir())
+        .partition(|p| p.join(CAMERAS_FILE).is_file());
+    for dir in incomplete {
+        scan.skipped.push(format!(
+            "{}: incomplete synthetic clip (no {CAMERAS_FILE})",
+            dir.display()
+        ));
+    }
     if dirs.is_empty() {
         return Err(DataError::EmptyFolder {
             path: root.to_path_buf(),
@@ -157,11 +165,19 @@ pub fn load_synth_gt(
             .ok_or_else(|| DataError::gt(&cams_path, format!("no camera for frame t = {t}")))?;
         let depth_path = dir.join(DEPTH_DIR).join(frame_name(t, "exr"));
         let depth = read_gray(&depth_path)?;
-        let flow = read_xyz(&dir.join(FLOW_DIR).join(frame_name(t, "exr")))?;
+        let flow_path = dir.join(FLOW_DIR).join(frame_name(t, "exr"));
+        let flow = read_xyz(&flow_path)?;
         if (depth.height, depth.width) != source_size {
             return Err(DataError::gt(
                 &depth_path,
                 "depth size differs from the frame size",
+            ));
+        }
+        // A flow map of the wrong size would make later per-pixel reads go out of bounds.
+        if (flow.height, flow.width) != source_size || flow.channels != 3 {
+            return Err(DataError::gt(
+                &flow_path,
+                "flow must be a 3-channel map of the frame size",
             ));
         }
         out.push(FrameGt {
