@@ -4,8 +4,6 @@ use crate::fixture::{assert_close, flat, Fixture, UNIT_ABS, UNIT_REL};
 use burn::tensor::Device;
 use envision4d_model::adapter::{adapt, OpacityMapping, ScaleRange};
 use envision4d_model::model::Heads;
-use envision4d_model::weights::{load_safetensors, Missing, Unexpected};
-use envision4d_model::{Envision4d, ModelConfig};
 
 /// Guards the adapter's conventions: depth as unit-ray distance, pixel-footprint scales, the
 /// rotation order mix-up with w >= 0 output, sigmoid colours, motion reshape.
@@ -59,15 +57,7 @@ fn adapter_unit_case_matches_reference() {
 fn tiny_adapter_matches_reference() {
     let fx = Fixture::open("envision4d_tiny.safetensors");
     let device = Device::flex();
-    let mut model = Envision4d::new(&ModelConfig::tiny(), &device);
-    load_safetensors(
-        &mut model,
-        &fx.path,
-        "weights/",
-        Missing::Reject,
-        Unexpected::Reject,
-    )
-    .unwrap_or_else(|e| panic!("{e}"));
+    let model = fx.tiny_model(&device);
     let p = model.forward(fx.tensor::<5>("input/images", &device), Heads::ALL);
     let a = model
         .adapt(&p, OpacityMapping::default(), 0)

@@ -8,8 +8,6 @@ use envision4d_model::config::{DinoConfig, ModelConfig};
 use envision4d_model::dino::Dino;
 use envision4d_model::future::sinusoid;
 use envision4d_model::pose::pose_encoding_to_extri_intri;
-use envision4d_model::weights::{load_safetensors, Missing, Unexpected};
-use envision4d_model::Envision4d;
 
 /// Aggregator-intermediate tolerance of the fixtures README (`5e-5 * max|ref|`).
 const AGG_REL: f32 = 5e-5;
@@ -172,24 +170,7 @@ fn tiny_backbone_matches_reference() {
     let fx = Fixture::open("envision4d_tiny.safetensors");
     let device = Device::flex();
     let cfg = ModelConfig::tiny();
-    let mut model = Envision4d::new(&cfg, &device);
-    let report = load_safetensors(
-        &mut model,
-        &fx.path,
-        "weights/",
-        Missing::Reject,
-        Unexpected::Reject,
-    )
-    .unwrap_or_else(|e| panic!("{e}"));
-    // Only the DPT heads may be left over until they exist.
-    assert!(
-        report
-            .ignored
-            .iter()
-            .all(|k| k.contains("_head.") && !k.starts_with("camera_head")),
-        "unexpected leftovers: {:?}",
-        report.ignored
-    );
+    let model = fx.tiny_model(&device);
     let images = fx.tensor::<5>("input/images", &device);
     let all: Vec<usize> = (0..cfg.depth).collect();
     let out = model.backbone(images, &all);
@@ -268,16 +249,7 @@ fn tiny_backbone_matches_reference() {
 fn tiny_full_forward_matches_reference() {
     let fx = Fixture::open("envision4d_tiny.safetensors");
     let device = Device::flex();
-    let cfg = ModelConfig::tiny();
-    let mut model = Envision4d::new(&cfg, &device);
-    load_safetensors(
-        &mut model,
-        &fx.path,
-        "weights/",
-        Missing::Reject,
-        Unexpected::Reject,
-    )
-    .unwrap_or_else(|e| panic!("{e}"));
+    let model = fx.tiny_model(&device);
     let out = model.forward(
         fx.tensor::<5>("input/images", &device),
         envision4d_model::model::Heads::ALL,
@@ -322,16 +294,7 @@ fn tiny_full_forward_matches_reference() {
 fn tiny_intermediates_match_reference() {
     let fx = Fixture::open("envision4d_tiny.safetensors");
     let device = Device::flex();
-    let cfg = ModelConfig::tiny();
-    let mut model = Envision4d::new(&cfg, &device);
-    load_safetensors(
-        &mut model,
-        &fx.path,
-        "weights/",
-        Missing::Reject,
-        Unexpected::Reject,
-    )
-    .unwrap_or_else(|e| panic!("{e}"));
+    let model = fx.tiny_model(&device);
     let norm =
         envision4d_model::aggregator::normalize_images(fx.tensor::<5>("input/images", &device));
     let [b, s, c, h, w] = norm.dims();

@@ -16,19 +16,6 @@ fn script() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../scripts/make_lightning_ckpt.py")
 }
 
-fn tiny_from_fixture(fx: &Fixture, device: &Device) -> Envision4d {
-    let mut m = Envision4d::new(&ModelConfig::tiny(), device);
-    load_safetensors(
-        &mut m,
-        &fx.path,
-        "weights/",
-        Missing::Reject,
-        Unexpected::Reject,
-    )
-    .unwrap();
-    m
-}
-
 fn pose_matches(model: &Envision4d, fx: &Fixture, device: &Device) {
     let out = model.backbone(fx.tensor::<5>("input/images", device), &[]);
     assert_close(
@@ -78,7 +65,7 @@ fn lightning_ckpt_loads_and_matches() {
 fn own_checkpoint_round_trip() {
     let fx = Fixture::open("envision4d_tiny.safetensors");
     let device = Device::flex();
-    let model = tiny_from_fixture(&fx, &device);
+    let model = fx.tiny_model(&device);
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("model.safetensors");
     save_checkpoint(&model, &ModelConfig::tiny(), &path).unwrap();
@@ -124,7 +111,7 @@ fn vggt1b_initialisation() {
     let device = Device::flex();
     let dir = tempfile::tempdir().unwrap();
     let own = dir.path().join("own.safetensors");
-    save_checkpoint(&tiny_from_fixture(&fx, &device), &ModelConfig::tiny(), &own).unwrap();
+    save_checkpoint(&fx.tiny_model(&device), &ModelConfig::tiny(), &own).unwrap();
     let vggt = dir.path().join("vggt.safetensors");
     let is_new = |k: &str| {
         k.starts_with("aggregator.time_blocks.")
@@ -231,7 +218,7 @@ fn mismatched_and_corrupt_checkpoints() {
 fn heads_can_be_skipped() {
     let fx = Fixture::open("envision4d_tiny.safetensors");
     let device = Device::flex();
-    let model = tiny_from_fixture(&fx, &device);
+    let model = fx.tiny_model(&device);
     let p = model.forward(fx.tensor::<5>("input/images", &device), Heads::NONE);
     assert!(p.depth.is_none() && p.gaussians.is_none() && p.motion_enc.is_none());
     assert_close(

@@ -92,6 +92,23 @@ impl Fixture {
     }
 }
 
+impl Fixture {
+    /// The tiny Envision4D with every weight of this fixture loaded strictly (`weights/`).
+    pub fn tiny_model(&self, device: &Device) -> envision4d_model::Envision4d {
+        let mut m =
+            envision4d_model::Envision4d::new(&envision4d_model::ModelConfig::tiny(), device);
+        load_safetensors(
+            &mut m,
+            &self.path,
+            "weights/",
+            Missing::Reject,
+            Unexpected::Reject,
+        )
+        .unwrap_or_else(|e| panic!("{e}"));
+        m
+    }
+}
+
 /// Asserts `|got - want| <= rel * max|want| + abs` elementwise and returns the worst ratio.
 pub fn assert_close(what: &str, got: Tensor<1>, want: &[f32], rel: f32, abs: f32) -> f32 {
     let got: Vec<f32> = got
