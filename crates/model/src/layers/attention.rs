@@ -4,7 +4,8 @@
 use super::rope::RopeTables;
 use burn::module::Module;
 use burn::nn::{LayerNorm, LayerNormConfig, Linear, LinearConfig};
-use burn::tensor::activation::softmax;
+use burn::tensor::module::attention;
+use burn::tensor::ops::AttentionModuleOptions;
 use burn::tensor::{Device, Tensor};
 
 /// LayerNorm epsilon of the q/k norms (PyTorch default).
@@ -68,9 +69,12 @@ impl Attention {
             q = r.apply(q);
             k = r.apply(k);
         }
-        let scale = (d as f64).powf(-0.5);
-        let attn = softmax(q.mul_scalar(scale).matmul(k.swap_dims(2, 3)), 3);
-        let out = attn.matmul(v).swap_dims(1, 2).reshape([b, n, c]);
+        // softmax(q kᵀ / sqrt(d)) v. Burn's op picks a tiled (flash) kernel on the CPU backend
+        // when the score matrix is large (the global blocks) and decomposes into ordinary,
+        // differentiable ops under autodiff.
+        let out = attention(q, k, v, None, None, AttentionModuleOptions::default())
+            .swap_dims(1, 2)
+            .reshape([b, n, c]);
         self.proj.forward(out)
     }
 }
