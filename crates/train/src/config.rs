@@ -1,0 +1,299 @@
+//! The training configuration (TOML). Every section denies unknown keys, so a typo is an
+//! error naming the key. Defaults are the paper's values (§4 implementation details,
+//! model.md §3); `configs/waymo.toml` spells them all out.
+
+use envision4d_model::ModelConfig;
+use serde::{Deserialize, Serialize};
+use std::path::PathBuf;
+
+/// Paper: Adam, lr 1e-4.
+pub const PAPER_LR: f64 = 1e-4;
+pub const PAPER_BATCH: usize = 2;
+pub const PAPER_ITERATIONS: u64 = 100_000;
+pub const PAPER_WARMUP_ITERATIONS: u64 = 2_500;
+pub const PAPER_S_MAX: u64 = 50_000;
+pub const PAPER_ALPHA0: f64 = 1.0;
+/// STORM's grad-norm clip (the paper states none); model.md §3 "STORM's training loop".
+pub const DEFAULT_GRAD_CLIP: f64 = 3.0;
+
+/// Which network is trained.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Stage {
+    /// Supervised VGGT part (aggregator, camera and depth heads) on ground truth.
+    Backbone,
+    /// The paper's self-supervised, progressive training.
+    Envision4d,
+}
+
+/// Where the distillation pseudo-labels come from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Teacher {
+    /// A frozen backbone run on all N ground-truth frames (the paper).
+    Backbone,
+    /// Exact labels of the synthetic world.
+    GroundTruth,
+    /// No distillation terms.
+    None,
+}
+
+/// Learning-rate schedule.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum LrSchedule {
+    /// Half-cosine from `lr` to `min_lr` over `iterations` (paper: "cosine schedule").
+    Cosine,
+    Constant,
+}
+
+/// Gradient clipping (burn's `GradientClipping`, applied per parameter tensor).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ClipMode {
+    Norm,
+    Value,
+    None,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct OptimConfig {
+    pub lr: f64,
+    pub min_lr: f64,
+    pub schedule: LrSchedule,
+    pub batch_size: usize,
+    pub iterations: u64,
+    pub grad_clip: ClipMode,
+    pub grad_clip_threshold: f64,
+}
+
+impl Default for OptimConfig {
+    fn default() -> Self {
+        OptimConfig {
+            lr: PAPER_LR,
+            min_lr: 0.0,
+            schedule: LrSchedule::Cosine,
+            batch_size: PAPER_BATCH,
+            iterations: PAPER_ITERATIONS,
+            grad_clip: ClipMode::Norm,
+            grad_clip_threshold: DEFAULT_GRAD_CLIP,
+        }
+    }
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct LossConfig {
+    pub lambda_lpips: f64,
+    pub lambda_cam: f64,
+    pub lambda_depth: f64,
+    /// LPIPS (VGG) weights in safetensors; required when `lambda_lpips > 0`.
+    pub lpips_weights: Option<PathBuf>,
+}
+
+impl Default for LossConfig {
+    fn default() -> Self {
+        LossConfig {
+            lambda_lpips: envision4d_losses::LPIPS_LOSS_WEIGHT,
+            lambda_cam: envision4d_losses::CAMERA_DISTILL_WEIGHT,
+            lambda_depth: envision4d_losses::DEPTH_DISTILL_WEIGHT,
+            lpips_weights: None,
+        }
+    }
+}
+
+/// Where the α annealing clock `s'` starts (the paper is ambiguous, model.md §3).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum AnnealOrigin {
+    /// `s' = step - warmup_iterations` ("Subsequently ..."): the default.
+    AfterWarmup,
+    /// `s' = step`.
+    StepZero,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ProgressiveConfig {
+    pub warmup_iterations: u64,
+    pub s_max: u64,
+    pub alpha0: f64,
+    pub anneal_origin: AnnealOrigin,
+}
+
+impl Default for ProgressiveConfig {
+    fn default() -> Self {
+        ProgressiveConfig {
+            warmup_iterations: PAPER_WARMUP_ITERATIONS,
+            s_max: PAPER_S_MAX,
+            alpha0: PAPER_ALPHA0,
+            anneal_origin: AnnealOrigin::AfterWarmup,
+        }
+    }
+}
+
+/// Motion model of the ablation table.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum MotionModel {
+    /// Conditioned motion lifting (the paper).
+    Lifting,
+    /// Linear bidirectional velocity instead of CML.
+    LinearVelocity,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum TemporalAttention {
+    InLayer,
+    PostLayer,
+}
+
+/// An on/off ablation switch (an enum so a config reads `warmup = "off"`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Switch {
+    On,
+    Off,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct AblationConfig {
+    pub motion: MotionModel,
+    pub temporal_attention: TemporalAttention,
+    pub warmup: Switch,
+    pub progressive_weighting: Switch,
+}
+
+impl Default for AblationConfig {
+    fn default() -> Self {
+        AblationConfig {
+            motion: MotionModel::Lifting,
+            temporal_attention: TemporalAttention::InLayer,
+            warmup: Switch::On,
+            progressive_weighting: Switch::On,
+        }
+    }
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum DataLayout {
+    Synth,
+    Folder,
+    Waymo,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DataConfig {
+    pub layout: DataLayout,
+    pub root: PathBuf,
+    /// Frames between consecutive clip windows.
+    #[serde(default = "one")]
+    pub stride: usize,
+}
+
+fn one() -> usize {
+    1
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct RunConfig {
+    pub out_dir: PathBuf,
+    pub log_every: u64,
+    pub checkpoint_every: u64,
+    pub keep_checkpoints: usize,
+}
+
+impl Default for RunConfig {
+    fn default() -> Self {
+        RunConfig {
+            out_dir: PathBuf::from("runs/default"),
+            log_every: 10,
+            // STORM checkpoints every 5 000 iterations.
+            checkpoint_every: 5_000,
+            keep_checkpoints: 3,
+        }
+    }
+}
+
+/// Parameter groups that can be frozen (names follow the official `state_dict`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum FreezeGroup {
+    PatchEmbed,
+    FrameBlocks,
+    GlobalBlocks,
+    /// `camera_token` and `register_token`.
+    Tokens,
+    CameraHead,
+    TimeBlocks,
+    /// `extra_token_offset`, `extra_blocks`, `time_embedding`.
+    FuturePose,
+    DepthHead,
+    GsHead,
+    MotionHead,
+}
+
+impl FreezeGroup {
+    /// The paper's frozen set (model.md §3 "Model state"); the depth head stays trainable.
+    pub const PAPER: [FreezeGroup; 5] = [
+        FreezeGroup::PatchEmbed,
+        FreezeGroup::FrameBlocks,
+        FreezeGroup::GlobalBlocks,
+        FreezeGroup::Tokens,
+        FreezeGroup::CameraHead,
+    ];
+}
+
+fn paper_freeze() -> Vec<FreezeGroup> {
+    FreezeGroup::PAPER.to_vec()
+}
+
+/// The resolved configuration.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct TrainConfig {
+    pub stage: Stage,
+    pub seed: u64,
+    pub teacher: Teacher,
+    pub freeze: Vec<FreezeGroup>,
+    /// Initial weights (VGGT-1B release or a stage-1 checkpoint); random init when absent.
+    pub init_checkpoint: Option<PathBuf>,
+    pub model: ModelConfig,
+    pub optim: OptimConfig,
+    pub loss: LossConfig,
+    pub progressive: ProgressiveConfig,
+    pub ablation: AblationConfig,
+    pub data: DataConfig,
+    pub run: RunConfig,
+}
+
+/// The file as written: `[model]` is a preset plus overrides, resolved in `load`.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct RawTrainConfig {
+    pub stage: Stage,
+    #[serde(default)]
+    pub seed: u64,
+    pub teacher: Teacher,
+    #[serde(default = "paper_freeze")]
+    pub freeze: Vec<FreezeGroup>,
+    #[serde(default)]
+    pub init_checkpoint: Option<PathBuf>,
+    pub model: toml::Table,
+    #[serde(default)]
+    pub optim: OptimConfig,
+    #[serde(default)]
+    pub loss: LossConfig,
+    #[serde(default)]
+    pub progressive: ProgressiveConfig,
+    #[serde(default)]
+    pub ablation: AblationConfig,
+    pub data: DataConfig,
+    #[serde(default)]
+    pub run: RunConfig,
+}

@@ -1,0 +1,110 @@
+//! Frozen parameter groups: their ids (whose gradients the optimiser never sees) and the
+//! trainable/frozen parameter counts printed by `--dry-run`.
+
+use crate::config::FreezeGroup;
+use burn::module::{Module, ModuleVisitor, Param, ParamId};
+use burn::tensor::{Gradients, Tensor};
+use envision4d_model::Envision4d;
+use std::collections::HashSet;
+
+#[derive(Default)]
+struct Ids {
+    ids: Vec<ParamId>,
+    count: usize,
+}
+
+impl ModuleVisitor for Ids {
+    fn visit_float<const D: usize>(&mut self, param: &Param<Tensor<D>>) {
+        self.ids.push(param.id);
+        self.count += param.shape().num_elements();
+    }
+}
+
+fn collect<M: Module>(m: &M, into: &mut Ids) {
+    m.visit(into);
+}
+
+/// Ids and element count of one group.
+fn group_ids(model: &Envision4d, group: FreezeGroup, out: &mut Ids) {
+    let agg = &model.aggregator;
+    match group {
+        FreezeGroup::PatchEmbed => collect(&agg.patch_embed, out),
+        FreezeGroup::FrameBlocks => collect(&agg.frame_blocks, out),
+        FreezeGroup::GlobalBlocks => collect(&agg.global_blocks, out),
+        FreezeGroup::Tokens => {
+            out.visit_float(&agg.camera_token);
+            out.visit_float(&agg.register_token);
+        }
+        FreezeGroup::CameraHead => collect(&model.camera_head, out),
+        FreezeGroup::TimeBlocks => collect(&agg.time_blocks, out),
+        FreezeGroup::FuturePose => collect(&model.future, out),
+        FreezeGroup::DepthHead => collect(&model.depth_head, out),
+        FreezeGroup::GsHead => collect(&model.gs_head, out),
+        FreezeGroup::MotionHead => collect(&model.motion_head, out),
+    }
+}
+
+/// The split of a model's parameters into frozen and trainable.
+#[derive(Debug, Clone)]
+pub struct ParamSplit {
+    pub frozen: HashSet<ParamId>,
+    pub trainable: Vec<ParamId>,
+    pub frozen_count: usize,
+    pub trainable_count: usize,
+}
+
+impl ParamSplit {
+    pub fn new(model: &Envision4d, groups: &[FreezeGroup]) -> Self {
+        let mut frozen = Ids::default();
+        let unique: HashSet<FreezeGroup> = groups.iter().copied().collect();
+        for g in unique {
+            group_ids(model, g, &mut frozen);
+        }
+        let mut all = Ids::default();
+        collect(model, &mut all);
+        let frozen_set: HashSet<ParamId> = frozen.ids.into_iter().collect();
+        let trainable: Vec<ParamId> = all
+            .ids
+            .into_iter()
+            .filter(|id| !frozen_set.contains(id))
+            .collect();
+        ParamSplit {
+            frozen: frozen_set,
+            trainable,
+            frozen_count: frozen.count,
+            trainable_count: all.count - frozen.count,
+        }
+    }
+}
+
+struct GradAbs<'a> {
+    grads: &'a Gradients,
+    sum: f64,
+    found: bool,
+}
+
+impl ModuleVisitor for GradAbs<'_> {
+    fn visit_float<const D: usize>(&mut self, param: &Param<Tensor<D>>) {
+        if let Some(g) = param.val().grad(self.grads) {
+            self.found = true;
+            self.sum += g
+                .abs()
+                .sum()
+                .into_data()
+                .iter::<f64>()
+                .next()
+                .unwrap_or(f64::NAN);
+        }
+    }
+}
+
+/// `Σ|∂L/∂θ|` over a module's parameters, `None` when none of them received a gradient.
+pub fn grad_abs_sum<M: Module>(module: &M, grads: &Gradients) -> Option<f64> {
+    let mut v = GradAbs {
+        grads,
+        sum: 0.0,
+        found: false,
+    };
+    module.visit(&mut v);
+    v.found.then_some(v.sum)
+}
