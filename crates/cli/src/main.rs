@@ -8,6 +8,7 @@ mod model_config;
 mod render_cmd;
 mod splat_cmd;
 mod synth_cmd;
+mod train_cmd;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
@@ -31,6 +32,8 @@ enum Command {
     Synth(synth_cmd::SynthArgs),
     /// Run Envision4D on context frames and export its predictions (poses, depth, Gaussians, motion).
     Render(render_cmd::RenderArgs),
+    /// Train Envision4D from a TOML config (`--dry-run` checks and summarises it).
+    Train(train_cmd::TrainArgs),
 }
 
 /// An error caused by the user's input (exit code 2) rather than by the program.
@@ -44,6 +47,7 @@ fn main() -> ExitCode {
         Command::Splat(args) => splat_cmd::run(args),
         Command::Synth(args) => synth_cmd::run(args),
         Command::Render(args) => render_cmd::run(args),
+        Command::Train(args) => train_cmd::run(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -171,3 +171,45 @@ fn frame_folder_and_bad_inputs() {
             > 10
     );
 }
+
+/// Guards `envision4d train --dry-run`: the shipped tiny config resolves and builds with a
+/// parameter count, and a typo in a config is an exit-2 error naming the key.
+#[test]
+fn train_dry_run_and_config_typo() {
+    let cfg = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../configs/synth-tiny.toml");
+    let o = Command::new(env!("CARGO_BIN_EXE_envision4d"))
+        .args(["train", "--config", cfg.to_str().unwrap(), "--dry-run"])
+        .output()
+        .unwrap();
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(out.contains("trainable") && out.contains("frozen"), "{out}");
+
+    let dir = tempfile::tempdir().unwrap();
+    let bad = dir.path().join("bad.toml");
+    let text = std::fs::read_to_string(&cfg).unwrap();
+    let first_key = text
+        .lines()
+        .find(|l| l.contains(" = "))
+        .unwrap()
+        .split(" = ")
+        .next()
+        .unwrap()
+        .trim()
+        .to_string();
+    std::fs::write(
+        &bad,
+        text.replacen(&format!("{first_key} = "), &format!("{first_key}x = "), 1),
+    )
+    .unwrap();
+    let o = Command::new(env!("CARGO_BIN_EXE_envision4d"))
+        .args(["train", "--config", bad.to_str().unwrap(), "--dry-run"])
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(2));
+    assert!(
+        String::from_utf8_lossy(&o.stderr).contains(&format!("{first_key}x")),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+}
