@@ -323,3 +323,82 @@ fn every_preset_renders() {
         assert_eq!(Preset::from_name(preset.name()), Some(preset));
     }
 }
+
+/// Guards ground-truth pairing by frame number: with frame 2 of 6 deleted, no window spans
+/// the gap, and a window after it gets the cameras of its own frame numbers (not of the
+/// positions in the listing).
+#[test]
+fn missing_frame_never_shifts_ground_truth() {
+    let dir = tempfile::tempdir().unwrap();
+    make(dir.path(), Preset::Urban, 21, 6);
+    let rgb = dir.path().join("clip_000000/rgb");
+    let removed = std::fs::read_dir(&rgb)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.file_stem().and_then(|s| s.to_str()) == Some("000002"))
+        .collect::<Vec<_>>();
+    assert_eq!(
+        removed.len(),
+        1,
+        "frame 2 exists before the test removes it"
+    );
+    std::fs::remove_file(&removed[0]).unwrap();
+    let cfg = DatasetConfig {
+        layout: Layout::Synth { stride: 1 },
+        spec: ClipSpec {
+            context: 1,
+            future: 1,
+        },
+        fit: Fit {
+            mode: FitMode::Resize,
+            height: H,
+            width: W,
+        },
+        cache_clips: 0,
+    };
+    let ds = ClipDataset::open(dir.path(), cfg).unwrap();
+    // Frames 0,1,3,4,5: windows (0,1), (3,4), (4,5); (1,3) spans the gap and is skipped.
+    assert_eq!(ds.len(), 3);
+    assert_eq!(ds.skipped(), 1);
+    let full = {
+        let d2 = tempfile::tempdir().unwrap();
+        make(d2.path(), Preset::Urban, 21, 6);
+        let cfg = DatasetConfig {
+            layout: Layout::Synth { stride: 1 },
+            spec: ClipSpec {
+                context: 1,
+                future: 1,
+            },
+            fit: Fit {
+                mode: FitMode::Resize,
+                height: H,
+                width: W,
+            },
+            cache_clips: 0,
+        };
+        ClipDataset::open(d2.path(), cfg).unwrap().load(3).unwrap()
+    };
+    let shifted = ds.load(1).unwrap();
+    assert!(
+        shifted.frame_paths[0].ends_with("000003.png"),
+        "{:?}",
+        shifted.frame_paths
+    );
+    // Window (3,4) of the gapped clip equals window (3,4) of the full clip, GT included.
+    let gt_a = format!(
+        "{:?}",
+        shifted
+            .gt
+            .iter()
+            .map(|g| g.world_to_camera)
+            .collect::<Vec<_>>()
+    );
+    let gt_b = format!(
+        "{:?}",
+        full.gt
+            .iter()
+            .map(|g| g.world_to_camera)
+            .collect::<Vec<_>>()
+    );
+    assert_eq!(gt_a, gt_b);
+}

@@ -113,7 +113,30 @@ pub fn scan(root: &Path, spec: &ClipSpec, stride: usize) -> Result<Scan> {
                 continue;
             }
         };
-        let starts = window_starts(frames.len(), spec.num_frames(), stride);
+        // Ground truth is indexed by the frame number in the file name, never by the position
+        // in the listing: a missing or extra file must not pair a frame with another frame's
+        // cameras, depth and flow.
+        let mut numbered = Vec::with_capacity(frames.len());
+        let mut bad_name = None;
+        for f in &frames {
+            match f
+                .file_stem()
+                .and_then(|s| s.to_str())
+                .and_then(|s| s.parse::<usize>().ok())
+            {
+                Some(t) => numbered.push((t, f.clone())),
+                None => bad_name = Some(f.clone()),
+            }
+        }
+        if let Some(f) = bad_name {
+            scan.skipped.push(format!(
+                "{}: synthetic frames are named by frame number ({}); skipping the clip",
+                f.display(),
+                frame_name(0, "png")
+            ));
+            continue;
+        }
+        let starts = window_starts(numbered.len(), spec.num_frames(), stride);
         if starts.is_empty() {
             let err = DataError::TooFewFrames {
                 path: dir.join(RGB_DIR),
@@ -123,14 +146,22 @@ pub fn scan(root: &Path, spec: &ClipSpec, stride: usize) -> Result<Scan> {
             scan.skipped.push(err.to_string());
         }
         for s in starts {
-            let indices: Vec<usize> = (s..s + spec.num_frames()).collect();
+            let window = &numbered[s..s + spec.num_frames()];
+            let first = window[0].0;
+            if window.iter().enumerate().any(|(k, (t, _))| *t != first + k) {
+                scan.skipped.push(format!(
+                    "{}: frames {first}.. are not consecutive; skipping that window",
+                    dir.join(RGB_DIR).display()
+                ));
+                continue;
+            }
             scan.entries.push(ClipEntry {
                 id: format!("{name}@{s}"),
                 group: name.clone(),
-                frames: frames[s..s + spec.num_frames()].to_vec(),
+                frames: window.iter().map(|(_, p)| p.clone()).collect(),
                 gt: GtSource::Synth {
                     clip_dir: dir.clone(),
-                    indices,
+                    indices: window.iter().map(|(t, _)| *t).collect(),
                 },
             });
         }
