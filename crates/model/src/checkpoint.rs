@@ -6,10 +6,10 @@
 use crate::config::ModelConfig;
 use crate::model::Envision4d;
 use crate::weights::{
-    checkpoint_keys, header_metadata, load_weights, LoadError, LoadReport, Missing, Unexpected,
-    KEY_RENAMES_BACK,
+    checkpoint_keys, header_metadata, load_weights, remapper, LoadError, LoadReport, Missing,
+    Unexpected, KEY_RENAMES_BACK,
 };
-use burn::store::{BurnToPyTorchAdapter, KeyRemapper, ModuleSnapshot, SafetensorsStore};
+use burn::store::{BurnToPyTorchAdapter, ModuleSnapshot, SafetensorsStore};
 use std::path::{Path, PathBuf};
 
 /// Prefix of the model's keys inside the released Lightning checkpoint.
@@ -107,12 +107,7 @@ pub fn save_checkpoint(
         path: path.to_path_buf(),
         message,
     };
-    let mut remap = KeyRemapper::new();
-    for (from, to) in KEY_RENAMES_BACK {
-        remap = remap
-            .add_pattern(*from, *to)
-            .map_err(|e| err(format!("bad rename {from}: {e}")))?;
-    }
+    let remap = remapper(None, KEY_RENAMES_BACK).map_err(err)?;
     let json = serde_json::to_string(config).map_err(|e| err(e.to_string()))?;
     let tmp = temp_path(path);
     let mut store = SafetensorsStore::from_file(&tmp)

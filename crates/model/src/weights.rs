@@ -131,36 +131,56 @@ impl Format {
 /// Lightning checkpoints keep the weights under this top-level key.
 pub const LIGHTNING_STATE_DICT: &str = "state_dict";
 
-/// Tensor names of a checkpoint (for PyTorch files, under `state_dict` when present).
-pub fn checkpoint_keys(path: &Path) -> Result<Vec<String>, LoadError> {
+/// The tensor names of a checkpoint, and whether they sit under a Lightning `state_dict`.
+struct Listing {
+    keys: Vec<String>,
+    lightning: bool,
+}
+
+fn list_checkpoint(path: &Path) -> Result<Listing, LoadError> {
     match Format::from_path(path)? {
-        Format::Safetensors => header_names(path),
+        Format::Safetensors => Ok(Listing {
+            keys: header_names(path)?,
+            lightning: false,
+        }),
         Format::PyTorch => {
             use burn::store::pytorch_reader::PytorchReader;
-            let reader = PytorchReader::with_top_level_key(path, LIGHTNING_STATE_DICT)
-                .or_else(|_| PytorchReader::new(path))
-                .map_err(|e| LoadError::Read {
-                    path: path.to_path_buf(),
-                    message: format!("not a readable PyTorch checkpoint: {e}"),
-                })?;
-            Ok(reader.keys())
+            let (reader, lightning) =
+                match PytorchReader::with_top_level_key(path, LIGHTNING_STATE_DICT) {
+                    Ok(r) => (r, true),
+                    Err(_) => (
+                        PytorchReader::new(path).map_err(|e| LoadError::Read {
+                            path: path.to_path_buf(),
+                            message: format!("not a readable PyTorch checkpoint: {e}"),
+                        })?,
+                        false,
+                    ),
+                };
+            Ok(Listing {
+                keys: reader.keys(),
+                lightning,
+            })
         }
     }
 }
 
-fn has_state_dict(path: &Path) -> bool {
-    burn::store::pytorch_reader::PytorchReader::with_top_level_key(path, LIGHTNING_STATE_DICT)
-        .is_ok()
+/// Tensor names of a checkpoint (for PyTorch files, under `state_dict` when present).
+pub fn checkpoint_keys(path: &Path) -> Result<Vec<String>, LoadError> {
+    Ok(list_checkpoint(path)?.keys)
 }
 
-pub fn load_safetensors<M: Module + ModuleSnapshot>(
-    module: &mut M,
-    path: &Path,
-    prefix: &str,
-    missing: Missing,
-    unexpected: Unexpected,
-) -> Result<LoadReport, LoadError> {
-    load_weights(module, path, prefix, missing, unexpected)
+/// A key remapper applying `rules` (regex, replacement) in order, after an optional first rule.
+pub fn remapper(
+    first: Option<(&str, &str)>,
+    rules: &[(&str, &str)],
+) -> Result<KeyRemapper, String> {
+    first
+        .into_iter()
+        .chain(rules.iter().copied())
+        .try_fold(KeyRemapper::new(), |r, (from, to)| {
+            r.add_pattern(from, to)
+                .map_err(|e| format!("bad key rule {from}: {e}"))
+        })
 }
 
 /// Loads `module`'s parameters from `path` (any [`Format`]), using only the tensors whose
@@ -176,19 +196,14 @@ pub fn load_weights<M: Module + ModuleSnapshot>(
         path: path.to_path_buf(),
         message,
     };
-    let under_prefix = checkpoint_keys(path)?
-        .into_iter()
+    let listing = list_checkpoint(path)?;
+    let under_prefix = listing
+        .keys
+        .iter()
         .filter_map(|n| n.strip_prefix(prefix).map(rename_key))
         .collect::<std::collections::HashSet<String>>();
     let pattern = format!("^{}(.*)$", regex_escape(prefix));
-    let mut remap = KeyRemapper::new()
-        .add_pattern(&pattern, "$1")
-        .map_err(|e| read_err(format!("bad prefix {prefix:?}: {e}")))?;
-    for (from, to) in KEY_RENAMES {
-        remap = remap
-            .add_pattern(*from, *to)
-            .map_err(|e| read_err(format!("bad rename {from}: {e}")))?;
-    }
+    let remap = remapper(Some((&pattern, "$1")), KEY_RENAMES).map_err(read_err)?;
     // `validate(false)`: shape mismatches come back in `ApplyResult::errors` (the tensor is
     // not applied either way) so they can be reported with the missing and unexpected keys.
     let result = match Format::from_path(path)? {
@@ -209,7 +224,7 @@ pub fn load_weights<M: Module + ModuleSnapshot>(
                 .allow_partial(true)
                 .validate(false)
                 .map_indices_contiguous(false);
-            if has_state_dict(path) {
+            if listing.lightning {
                 store = store.with_top_level_key(LIGHTNING_STATE_DICT);
             }
             module

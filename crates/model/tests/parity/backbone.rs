@@ -175,10 +175,9 @@ fn tiny_backbone_matches_reference() {
     let all: Vec<usize> = (0..cfg.depth).collect();
     let out = model.backbone(images, &all);
     let agg = &out.aggregator;
-    assert_close(
+    fx.expect(
         "images_normalized",
-        flat(agg.norm_images.clone()),
-        &fx.f32s("expected/images_normalized"),
+        agg.norm_images.clone(),
         UNIT_REL,
         UNIT_ABS,
     );
@@ -219,24 +218,16 @@ fn tiny_backbone_matches_reference() {
         OUT_REL,
         OUT_ABS,
     );
-    assert_close(
-        "pose_enc",
-        flat(out.pose_enc()),
-        &fx.f32s("expected/pose_enc"),
-        OUT_REL,
-        OUT_ABS,
-    );
-    assert_close(
+    fx.expect("pose_enc", out.pose_enc(), OUT_REL, OUT_ABS);
+    fx.expect(
         "adapter/extrinsics",
-        flat(out.extrinsics.clone()),
-        &fx.f32s("expected/adapter/extrinsics"),
+        out.extrinsics.clone(),
         OUT_REL,
         OUT_ABS,
     );
-    assert_close(
+    fx.expect(
         "adapter/intrinsics",
-        flat(out.intrinsics.clone()),
-        &fx.f32s("expected/adapter/intrinsics"),
+        out.intrinsics.clone(),
         OUT_REL,
         OUT_ABS,
     );
@@ -254,38 +245,14 @@ fn tiny_full_forward_matches_reference() {
         fx.tensor::<5>("input/images", &device),
         envision4d_model::model::Heads::ALL,
     );
-    assert_close(
-        "depth",
-        flat(out.depth.unwrap()),
-        &fx.f32s("expected/depth"),
-        OUT_REL,
-        OUT_ABS,
-    );
-    assert_close(
-        "depth_conf",
-        flat(out.depth_conf.unwrap()),
-        &fx.f32s("expected/depth_conf"),
-        OUT_REL,
-        OUT_ABS,
-    );
-    assert_close(
-        "gaussians",
-        flat(out.gaussians.unwrap()),
-        &fx.f32s("expected/gaussians"),
-        OUT_REL,
-        OUT_ABS,
-    );
+    fx.expect("depth", out.depth.unwrap(), OUT_REL, OUT_ABS);
+    fx.expect("depth_conf", out.depth_conf.unwrap(), OUT_REL, OUT_ABS);
+    fx.expect("gaussians", out.gaussians.unwrap(), OUT_REL, OUT_ABS);
     for (t, m) in out.motion_tokens.unwrap().into_iter().enumerate() {
         let key = format!("expected/motion_head/motion_tokens.{t}");
         assert_close(&key, flat(m), &fx.f32s(&key), AGG_REL, 0.0);
     }
-    assert_close(
-        "motion_enc",
-        flat(out.motion_enc.unwrap()),
-        &fx.f32s("expected/motion_enc"),
-        OUT_REL,
-        OUT_ABS,
-    );
+    fx.expect("motion_enc", out.motion_enc.unwrap(), OUT_REL, OUT_ABS);
 }
 
 /// Guards the tiny model's remaining intermediates: the aggregator's DINO outputs, the RoPE

@@ -7,7 +7,7 @@ use envision4d_model::checkpoint::{
     checkpoint_config, load_checkpoint, save_checkpoint, CheckpointKind,
 };
 use envision4d_model::model::Heads;
-use envision4d_model::weights::{header_names, load_safetensors, Missing, Unexpected};
+use envision4d_model::weights::{header_names, load_weights, Missing, Unexpected};
 use envision4d_model::{Envision4d, ModelConfig};
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -176,7 +176,7 @@ fn mismatched_and_corrupt_checkpoints() {
     let mut cfg = ModelConfig::tiny();
     cfg.dpt.features = 16;
     let mut model = Envision4d::new(&cfg, &device);
-    let err = load_safetensors(
+    let err = load_weights(
         &mut model,
         &fx.path,
         "weights/",

@@ -1,7 +1,7 @@
 //! Reading golden fixtures: tensors by key, and weights into modules by prefix.
 
 use burn::tensor::{DType, Device, Tensor, TensorData};
-use envision4d_model::weights::{load_safetensors, Missing, Unexpected};
+use envision4d_model::weights::{load_weights, Missing, Unexpected};
 use safetensors::SafeTensors;
 use std::path::PathBuf;
 
@@ -80,7 +80,7 @@ impl Fixture {
         module: &mut M,
         prefix: &str,
     ) {
-        let report = load_safetensors(
+        let report = load_weights(
             module,
             &self.path,
             prefix,
@@ -93,11 +93,22 @@ impl Fixture {
 }
 
 impl Fixture {
+    /// Checks `got` against `expected/<key>` (see [`assert_close`]).
+    pub fn expect<const D: usize>(&self, key: &str, got: Tensor<D>, rel: f32, abs: f32) -> f32 {
+        assert_close(
+            key,
+            flat(got),
+            &self.f32s(&format!("expected/{key}")),
+            rel,
+            abs,
+        )
+    }
+
     /// The tiny Envision4D with every weight of this fixture loaded strictly (`weights/`).
     pub fn tiny_model(&self, device: &Device) -> envision4d_model::Envision4d {
         let mut m =
             envision4d_model::Envision4d::new(&envision4d_model::ModelConfig::tiny(), device);
-        load_safetensors(
+        load_weights(
             &mut m,
             &self.path,
             "weights/",

@@ -46,6 +46,43 @@ fn cameras<F: Real>(viewmats: &[F], ks: &[F], width: u32, height: u32) -> Vec<Ca
         .collect()
 }
 
+/// The seven inputs copied to the host, with what is needed to send results back.
+struct HostInputs<F, D> {
+    arrays: [Vec<F>; 7],
+    shapes: [Vec<usize>; 7],
+    device: D,
+    dtype: DType,
+}
+
+impl<F: Real + Element, D: Clone> HostInputs<F, D> {
+    fn new<B: Backend<Device = D>>(inputs: [FloatTensor<B>; 7]) -> Self {
+        let device = inputs[0].device();
+        let dtype = inputs[0].dtype();
+        let shapes = inputs.each_ref().map(|t| t.shape().to_vec());
+        HostInputs {
+            arrays: inputs.map(to_host::<B, F>),
+            shapes,
+            device,
+            dtype,
+        }
+    }
+
+    fn scene(&self) -> Scene<'_, F> {
+        let [m, q, s, o, c, _, _] = &self.arrays;
+        Scene {
+            means: m,
+            quats: q,
+            scales: s,
+            opacities: o,
+            colors: c,
+        }
+    }
+
+    fn cameras(&self, width: u32, height: u32) -> Vec<Camera<F>> {
+        cameras(&self.arrays[5], &self.arrays[6], width, height)
+    }
+}
+
 pub fn forward<B: Backend>(
     inputs: [FloatTensor<B>; 7],
     width: u32,
@@ -65,17 +102,10 @@ fn forward_in<B: Backend, F: Real + Element>(
     height: u32,
     cfg: &RasterConfig,
 ) -> (FloatTensor<B>, IntTensor<B>, IntTensor<B>) {
-    let device = inputs[0].device();
-    let dtype = inputs[0].dtype();
-    let [means, quats, scales, opacities, colors, viewmats, ks] = inputs.map(to_host::<B, F>);
-    let scene = Scene {
-        means: &means,
-        quats: &quats,
-        scales: &scales,
-        opacities: &opacities,
-        colors: &colors,
-    };
-    let cams = cameras(&viewmats, &ks, width, height);
+    let host = HostInputs::<F, B::Device>::new::<B>(inputs);
+    let (device, dtype) = (host.device.clone(), host.dtype);
+    let scene = host.scene();
+    let cams = host.cameras(width, height);
     let out = cpu::render_forward(&scene, &cams, cfg);
     let v = cams.len();
     let n = scene.len();
@@ -117,21 +147,14 @@ fn backward_in<B: Backend, F: Real + Element>(
     height: u32,
     cfg: &RasterConfig,
 ) -> SplatGrads<B> {
-    let device = inputs[0].device();
-    let dtype = inputs[0].dtype();
-    let shapes: Vec<Vec<usize>> = inputs.iter().map(|t| t.shape().to_vec()).collect();
-    let [means, quats, scales, opacities, colors, viewmats, ks] = inputs.map(to_host::<B, F>);
+    let host = HostInputs::<F, B::Device>::new::<B>(inputs);
     let grad = to_host::<B, F>(grad_image);
-    let scene = Scene {
-        means: &means,
-        quats: &quats,
-        scales: &scales,
-        opacities: &opacities,
-        colors: &colors,
-    };
-    let cams = cameras(&viewmats, &ks, width, height);
+    let scene = host.scene();
+    let cams = host.cameras(width, height);
     let g = cpu::render_backward(&scene, &cams, cfg, &grad);
-    let t = |v: Vec<F>, k: usize| from_host::<B, F>(v, shapes[k].clone(), &device, dtype);
+    let t = |v: Vec<F>, k: usize| {
+        from_host::<B, F>(v, host.shapes[k].clone(), &host.device, host.dtype)
+    };
     SplatGrads {
         means: t(g.means, 0),
         quats: t(g.quats, 1),
