@@ -92,27 +92,6 @@ fn l1_mean<const D: usize>(
     student: Tensor<D>,
     teacher: Tensor<D>,
 ) -> Result<Tensor<1>> {
-    let (ds, dt) = (student.dims(), teacher.dims());
-    if ds != dt {
-        return Err(LossError::ShapeMismatch {
-            what,
-            left: ds.to_vec(),
-            right: dt.to_vec(),
-        });
-    }
-    if ds.iter().any(|&d| d == 0) {
-        return Err(LossError::BadShape {
-            what,
-            expected: "a non-empty tensor",
-            got: ds.to_vec(),
-        });
-    }
-    if student.dtype() != teacher.dtype() {
-        return Err(LossError::DtypeMismatch {
-            what,
-            expected: format!("{:?}", student.dtype()),
-            got: format!("{:?}", teacher.dtype()),
-        });
-    }
+    crate::mse::check_same(what, "a non-empty tensor", &student, &teacher)?;
     Ok((student - teacher.detach()).abs().mean())
 }

@@ -22,6 +22,17 @@ pub fn mse_per_frame(pred: Tensor<4>, target: Tensor<4>) -> Result<Tensor<1>> {
 
 /// Shape and dtype check for a (prediction, reference) image pair `[F, C, H, W]`.
 pub(crate) fn check_pair(what: &'static str, a: &Tensor<4>, b: &Tensor<4>) -> Result<()> {
+    check_same(what, "non-empty [F, C, H, W]", a, b)
+}
+
+/// Both tensors have the same non-empty shape and the same dtype; `expected` describes the
+/// shape in the error.
+pub(crate) fn check_same<const D: usize>(
+    what: &'static str,
+    expected: &'static str,
+    a: &Tensor<D>,
+    b: &Tensor<D>,
+) -> Result<()> {
     let (da, db) = (a.dims(), b.dims());
     if da != db {
         return Err(LossError::ShapeMismatch {
@@ -33,7 +44,7 @@ pub(crate) fn check_pair(what: &'static str, a: &Tensor<4>, b: &Tensor<4>) -> Re
     if da.iter().any(|&d| d == 0) {
         return Err(LossError::BadShape {
             what,
-            expected: "non-empty [F, C, H, W]",
+            expected,
             got: da.to_vec(),
         });
     }

@@ -2,7 +2,7 @@
 
 use burn::tensor::{DType, Device, Tensor};
 use envision4d_losses::{
-    camera_distill, depth_distill, distill, mse_per_frame, DistillWeights, Lpips,
+    camera_distill, depth_distill, distill, mse_per_frame, DistillWeights, Lpips, LpipsWeights,
 };
 
 use crate::common::{fixture_vgg_weights, tensor, values, Rng};
@@ -60,55 +60,58 @@ fn mse_gradient_matches_finite_differences() {
     });
 }
 
-/// Guards the LPIPS VGG backward through conv, ReLU, max-pool and the unit normalisation.
-#[test]
-fn lpips_vgg_gradient_matches_finite_differences() {
-    let weights = fixture_vgg_weights();
-    let mut rng = Rng::new(2);
-    let shape = [2, 3, 16, 16];
+/// Central finite differences of LPIPS at random images; `image_weights` weights the
+/// per-image distances (`None`: plain sum).
+fn lpips_matches_fd(
+    name: &str,
+    weights: &LpipsWeights,
+    seed: u64,
+    shape: [usize; 4],
+    entries: &[usize],
+    image_weights: Option<&[f64]>,
+) {
+    let mut rng = Rng::new(seed);
     let n = shape.iter().product();
     let x = rng.vec(n, 0.0, 1.0);
     let y = rng.vec(n, 0.0, 1.0);
     let nets = [
-        Lpips::new(&weights, &Device::flex().autodiff(), DType::F64),
-        Lpips::new(&weights, &Device::flex(), DType::F64),
+        Lpips::new(weights, &Device::flex().autodiff(), DType::F64),
+        Lpips::new(weights, &Device::flex(), DType::F64),
     ];
-    check(
+    check(name, &x, shape, entries, &|p| {
+        let net = &nets[usize::from(!p.device().is_autodiff())];
+        let t = tensor(&y, shape, &p.device(), DType::F64);
+        let d = net.forward(p, t).unwrap();
+        match image_weights {
+            Some(w) => weighted(d, w),
+            None => d.sum(),
+        }
+    });
+}
+
+/// Guards the LPIPS VGG backward through conv, ReLU, max-pool and the unit normalisation.
+#[test]
+fn lpips_vgg_gradient_matches_finite_differences() {
+    lpips_matches_fd(
         "lpips vgg",
-        &x,
-        shape,
+        &fixture_vgg_weights(),
+        2,
+        [2, 3, 16, 16],
         &[0, 100, 300, 767, 768, 1500],
-        &|p| {
-            let net = &nets[usize::from(!p.device().is_autodiff())];
-            let t = tensor(&y, shape, &p.device(), DType::F64);
-            weighted(net.forward(p, t).unwrap(), &[1.0, 0.5])
-        },
+        Some(&[1.0, 0.5]),
     );
 }
 
 /// Guards the LPIPS AlexNet backward (strided 11×11 conv, 3×3/2 pools).
 #[test]
 fn lpips_alex_gradient_matches_finite_differences() {
-    let weights = random_alex_weights(11);
-    let mut rng = Rng::new(3);
-    let shape = [1, 3, 32, 32];
-    let n = shape.iter().product();
-    let x = rng.vec(n, 0.0, 1.0);
-    let y = rng.vec(n, 0.0, 1.0);
-    let nets = [
-        Lpips::new(&weights, &Device::flex().autodiff(), DType::F64),
-        Lpips::new(&weights, &Device::flex(), DType::F64),
-    ];
-    check(
+    lpips_matches_fd(
         "lpips alex",
-        &x,
-        shape,
+        &random_alex_weights(11),
+        3,
+        [1, 3, 32, 32],
         &[0, 33, 500, 1024, 2000, 3071],
-        &|p| {
-            let net = &nets[usize::from(!p.device().is_autodiff())];
-            let t = tensor(&y, shape, &p.device(), DType::F64);
-            net.forward(p, t).unwrap().sum()
-        },
+        None,
     );
 }
 
