@@ -1,19 +1,29 @@
-//! `envision4d train --config FILE [--dry-run]`.
+//! `envision4d train --config FILE [--resume DIR] [--dry-run] [--backend ...]`.
 
 use crate::backend_choice::BackendChoice;
 use crate::InputError;
 use anyhow::Result;
 use clap::Args;
 use envision4d_train::freeze::ParamSplit;
+use envision4d_train::run::{run as run_training, Observer, RunOptions};
 use envision4d_train::step::build_model;
-use envision4d_train::Trainer;
-use std::path::PathBuf;
+use envision4d_train::validate::ValReport;
+use envision4d_train::{StepReport, TrainError, Trainer};
+use indicatif::{ProgressBar, ProgressStyle};
+use std::path::{Path, PathBuf};
 
 #[derive(Args, Debug)]
 pub struct TrainArgs {
     /// Training config (TOML; see configs/waymo.toml, configs/synth-tiny.toml).
     #[arg(long)]
     config: PathBuf,
+    /// Continue a run: its directory (newest checkpoint) or one checkpoint directory.
+    /// Restores model, optimiser state, step and data order, so the curve continues exactly.
+    #[arg(long)]
+    resume: Option<PathBuf>,
+    /// Stop after this many steps in total (with a checkpoint), e.g. to split a long run.
+    #[arg(long)]
+    stop_at: Option<u64>,
     /// Validate the config, resolve every setting, build the model and optimiser, print the
     /// settings and the trainable/frozen parameter counts, and stop.
     #[arg(long)]
@@ -22,31 +32,141 @@ pub struct TrainArgs {
     backend: BackendChoice,
 }
 
+/// Config or data problems are the user's (exit code 2); the rest is the program's.
+fn classify(e: TrainError) -> anyhow::Error {
+    match e {
+        TrainError::Io { .. }
+        | TrainError::Parse { .. }
+        | TrainError::Invalid { .. }
+        | TrainError::Batch(_) => InputError(e.to_string()).into(),
+        other => anyhow::Error::new(other),
+    }
+}
+
 pub fn run(args: TrainArgs) -> Result<()> {
     let cfg = envision4d_train::load(&args.config).map_err(|e| InputError(e.to_string()))?;
     let device = args.backend.device().autodiff();
     if args.dry_run {
-        // Resolve and build even when this build cannot train the config yet, so the
-        // paper config can be inspected too.
-        let model = build_model(&cfg, &device).map_err(|e| InputError(e.to_string()))?;
-        let split = ParamSplit::new(&model, &cfg.freeze);
-        println!(
-            "# resolved settings ({})\n{}",
-            args.config.display(),
-            cfg.to_toml()
-        );
-        println!(
-            "parameters: {} trainable, {} frozen ({} total) on {:?}",
-            split.trainable_count,
-            split.frozen_count,
-            split.trainable_count + split.frozen_count,
-            args.backend
-        );
-        if let Err(e) = Trainer::new(cfg, &device) {
-            println!("note: this build cannot run this config yet: {e}");
-        }
-        return Ok(());
+        return dry_run(&args, cfg, &device);
     }
-    Trainer::new(cfg, &device).map_err(|e| InputError(e.to_string()))?;
-    Err(InputError("training runs (progress, logs, checkpoints, resume) are not in this build yet: use --dry-run".into()).into())
+    let out = cfg.run.out_dir.clone();
+    let mut bar = Bar::new();
+    let summary = run_training(
+        cfg,
+        &device,
+        RunOptions {
+            resume: args.resume.clone(),
+            stop_at: args.stop_at,
+        },
+        &mut bar,
+    )
+    .map_err(classify)?;
+    bar.0.finish();
+    println!(
+        "trained {} steps ({} skipped); model {}; last checkpoint {}; log {}",
+        summary.steps,
+        summary.skipped,
+        summary.model.display(),
+        summary.last_checkpoint.display(),
+        out.join(envision4d_train::run::LOG_FILE).display()
+    );
+    if let Some(v) = summary.last_validation {
+        println!("last validation: {}", describe(&v));
+    }
+    Ok(())
+}
+
+fn dry_run(args: &TrainArgs, cfg: envision4d_train::TrainConfig, device: &burn::tensor::Device) -> Result<()> {
+    // Build without the init weights (they may be absent here) to count parameters, then
+    // report whether the files the run needs exist.
+    let mut bare = cfg.clone();
+    bare.init_checkpoint = None;
+    let model = build_model(&bare, device).map_err(|e| InputError(e.to_string()))?;
+    let split = ParamSplit::new(&model, &cfg.freeze);
+    println!("# resolved settings ({})\n{}", args.config.display(), cfg.to_toml());
+    println!(
+        "parameters: {} trainable, {} frozen ({} total) on {:?}",
+        split.trainable_count,
+        split.frozen_count,
+        split.trainable_count + split.frozen_count,
+        args.backend
+    );
+    let files = [
+        ("init_checkpoint", cfg.init_checkpoint.as_deref()),
+        ("teacher_checkpoint", cfg.teacher_checkpoint.as_deref()),
+        ("loss.lpips_weights", cfg.loss.lpips_weights.as_deref()),
+        ("data.root", Some(cfg.data.root.as_path())),
+    ];
+    for (key, path) in files {
+        if let Some(p) = path {
+            let state = if p.exists() { "found" } else { "MISSING" };
+            println!("{key}: {} ({state})", p.display());
+        }
+    }
+    if cfg.init_checkpoint.as_deref().is_none_or(Path::exists) {
+        if let Err(e) = Trainer::new(cfg, device) {
+            println!("note: this config cannot start: {e}");
+        }
+    }
+    Ok(())
+}
+
+fn fmt(v: Option<f64>, unit: &str) -> String {
+    v.map_or("-".into(), |x| format!("{x:.3}{unit}"))
+}
+
+fn describe(v: &ValReport) -> String {
+    format!(
+        "step {}: future PSNR {}, context PSNR {}, camera L1 {}, depth L1 {} ({} clips, {:.1} s)",
+        v.step,
+        fmt(v.future_psnr, " dB"),
+        fmt(v.context_psnr, " dB"),
+        fmt(v.camera_l1, ""),
+        fmt(v.depth_l1, " m"),
+        v.clips,
+        v.seconds
+    )
+}
+
+/// The progress bar: loss terms, PSNR, it/s and ETA.
+struct Bar(ProgressBar);
+
+impl Bar {
+    fn new() -> Bar {
+        let bar = ProgressBar::new(0);
+        if let Ok(style) = ProgressStyle::with_template(
+            "{bar:30} {pos}/{len} {msg} [{elapsed_precise}, eta {eta}]",
+        ) {
+            bar.set_style(style);
+        }
+        Bar(bar)
+    }
+}
+
+impl Observer for Bar {
+    fn start(&mut self, first: u64, total: u64) {
+        self.0.set_length(total);
+        self.0.set_position(first);
+        self.0.reset_eta();
+    }
+    fn step(&mut self, r: &StepReport, rate: f64) {
+        self.0.set_position(r.step + 1);
+        let psnr = r.psnr.map_or(String::new(), |p| format!(" psnr {p:.2}"));
+        self.0.set_message(format!(
+            "loss {:.4} (rgb {:.4} cam {:.4} depth {:.4}){psnr} {:?} {rate:.2} it/s",
+            r.total, r.rgb, r.camera, r.depth, r.phase
+        ));
+        if !r.outcome.applied() {
+            self.0.println(format!("step {}: skipped ({:?})", r.step, r.outcome));
+        }
+    }
+    fn validation(&mut self, v: &ValReport) {
+        self.0.println(format!("validation {}", describe(v)));
+    }
+    fn checkpoint(&mut self, dir: &Path) {
+        self.0.println(format!("checkpoint {}", dir.display()));
+    }
+    fn note(&mut self, m: &str) {
+        self.0.println(m);
+    }
 }

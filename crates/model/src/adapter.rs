@@ -104,11 +104,21 @@ fn quat_xyzw_to_mat(x: Tensor<4>, y: Tensor<4>, z: Tensor<4>, w: Tensor<4>) -> [
     ]
 }
 
+/// Floor under the square root of [`mat_to_quat_xyzw`]: keeps the (masked-out) gradient
+/// finite; values in (0, 1e-30) are the only ones it changes, by < 1e-15.
+const SQRT_FLOOR: f64 = 1e-30;
+
 /// Robust matrix → quaternion (pytorch3d's): four candidates, the one with the largest
 /// |component| wins; returned as xyzw with w >= 0. `m`: 9 row-major entries `[.., 1]`.
 fn mat_to_quat_xyzw(m: &[Tensor<4>; 9]) -> Tensor<4> {
     let [m00, m01, m02, m10, m11, m12, m20, m21, m22] = m.clone();
-    let sqrt_pos = |t: Tensor<4>| t.clamp_min(0.0).sqrt();
+    // pytorch3d's `_sqrt_positive_part`: sqrt where positive, 0 elsewhere, with a ZERO
+    // gradient where not positive. `clamp_min(0).sqrt()` has the same values but its
+    // gradient there is 0·∞ = NaN, which poisoned every parameter upstream of the rotations.
+    let sqrt_pos = |t: Tensor<4>| {
+        let not_pos = t.clone().lower_equal_elem(0.0);
+        t.clamp_min(SQRT_FLOOR).sqrt().mask_fill(not_pos, 0.0)
+    };
     let q_abs = [
         sqrt_pos(m00.clone().add_scalar(1.0) + m11.clone() + m22.clone()),
         sqrt_pos(m00.clone().add_scalar(1.0) - m11.clone() - m22.clone()),

@@ -4,8 +4,17 @@
 //! block (attention within one image) then a global block (attention across all frames), both
 //! with 2D RoPE. After the global blocks listed in `temporal_layers`, a temporal block attends
 //! over time for every token slot and its output continues into the next layer.
+//!
+//! The ablation [`TemporalPlacement::PostLayer`] ("appending the temporal attention module
+//! after frozen backbone", paper §4.3) runs every layer untouched, so `output_list` (the DPT
+//! taps and the camera tokens) is plain VGGT, then applies the same four temporal blocks one
+//! after another to the last layer's global output: `Y_0 = T_0(G_last)`, `Y_t = T_t(Y_{t−1})`.
+//! Its `time_list[t] = cat(G_{ℓ_t}, Y_t)` keeps the in-layer form (global output at tap layer
+//! ℓ_t, then a temporal output): the global halves stay a shallow-to-deep pyramid for the
+//! motion DPT and equal the in-layer model's pre-temporal taps in kind, so the ablation moves
+//! only where temporal attention acts; the temporal halves get deeper with t, as in-layer.
 
-use crate::config::{ModelConfig, MLP_RATIO};
+use crate::config::{ModelConfig, TemporalPlacement, MLP_RATIO};
 use crate::dino::Dino;
 use crate::future::NEW_BLOCK_LAYER_SCALE;
 use crate::layers::{frame_positions, Block, BlockSpec, QkNorm, RopeTables, BLOCK_NORM_EPS};
@@ -15,6 +24,14 @@ use burn::tensor::{Device, Distribution, Tensor, TensorData};
 /// ImageNet normalisation (`_resnet_mean`, `_resnet_std`).
 pub const IMAGENET_MEAN: [f32; 3] = [0.485, 0.456, 0.406];
 pub const IMAGENET_STD: [f32; 3] = [0.229, 0.224, 0.225];
+
+/// Whether the temporal blocks run (Envision4D, where the config places them) or are skipped
+/// (plain VGGT).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Temporal {
+    Apply,
+    Skip,
+}
 
 #[derive(Module, Debug)]
 pub struct Aggregator {
@@ -28,6 +45,9 @@ pub struct Aggregator {
     pub time_blocks: Vec<Block>,
     pub temporal_layers: [usize; 4],
     pub num_heads: usize,
+    /// Where [`Temporal::Apply`] runs the temporal blocks (from the config; not a parameter).
+    #[module(skip)]
+    pub placement: TemporalPlacement,
 }
 
 /// What the aggregator produces for the heads.
@@ -96,6 +116,7 @@ impl Aggregator {
                 .collect(),
             temporal_layers: cfg.temporal_layers,
             num_heads: cfg.num_heads,
+            placement: cfg.temporal_attention,
         }
     }
 
@@ -114,6 +135,18 @@ impl Aggregator {
     /// `images: [B, S, 3, H, W]` in [0, 1]; `keep` lists the layers whose `output_list` entry
     /// is returned (the DPT taps and the last layer).
     pub fn forward(&self, images: Tensor<5>, keep: &[usize]) -> AggregatorOutput {
+        self.forward_with(images, keep, Temporal::Apply)
+    }
+
+    /// [`Aggregator::forward`] with the temporal blocks applied (at `self.placement`) or
+    /// skipped; skipped, this is VGGT's aggregator exactly (the backbone stage and the
+    /// distillation teacher) and `time_list` is empty.
+    pub fn forward_with(
+        &self,
+        images: Tensor<5>,
+        keep: &[usize],
+        temporal: Temporal,
+    ) -> AggregatorOutput {
         let [b, s, _, h, w] = images.dims();
         let norm_images = normalize_images(images);
         let patch = self.patch_embed.patch_size;
@@ -141,35 +174,41 @@ impl Aggregator {
         let global_pos: Vec<[i64; 2]> = (0..s).flat_map(|_| frame_pos.iter().copied()).collect();
         let rope_global = RopeTables::new(&vec![global_pos; b], head_dim, &device);
 
+        let placement = match temporal {
+            Temporal::Apply => Some(self.placement),
+            Temporal::Skip => None,
+        };
         let mut layers = Vec::new();
         let mut time_list = Vec::new();
+        // PostLayer: the global outputs at the temporal layers, and the last one.
+        let mut tap_globals = Vec::new();
+        let mut last_global = None;
         for l in 0..self.frame_blocks.len() {
             let f = self.frame_blocks[l].forward(x.reshape([b * s, p, c]), Some(&rope_frame));
-            let g =
-                self.global_blocks[l].forward(f.clone().reshape([b, s * p, c]), Some(&rope_global));
+            let g = self.global_blocks[l]
+                .forward(f.clone().reshape([b, s * p, c]), Some(&rope_global))
+                .reshape([b, s, p, c]);
             x = g.clone().reshape([b * s, p, c]);
-            if let Some(t) = self.temporal_layers.iter().position(|&tl| tl == l) {
-                // [B, S, P, C] -> [B*P, S, C]: a sequence over time for each token slot.
-                let seq = g
-                    .clone()
-                    .reshape([b, s, p, c])
-                    .swap_dims(1, 2)
-                    .reshape([b * p, s, c]);
-                let y = self.time_blocks[t]
-                    .forward(seq, None)
-                    .reshape([b, p, s, c])
-                    .swap_dims(1, 2);
-                time_list.push(Tensor::cat(
-                    vec![g.clone().reshape([b, s, p, c]), y.clone()],
-                    3,
-                ));
-                x = y.reshape([b * s, p, c]);
+            let time_block = self.temporal_layers.iter().position(|&tl| tl == l);
+            match (placement, time_block) {
+                (Some(TemporalPlacement::InLayer), Some(t)) => {
+                    let y = self.temporal_block(t, g.clone());
+                    time_list.push(Tensor::cat(vec![g.clone(), y.clone()], 3));
+                    x = y.reshape([b * s, p, c]);
+                }
+                (Some(TemporalPlacement::PostLayer), Some(_)) => tap_globals.push(g.clone()),
+                _ => {}
             }
             if keep.contains(&l) {
-                layers.push((
-                    l,
-                    Tensor::cat(vec![f.reshape([b, s, p, c]), g.reshape([b, s, p, c])], 3),
-                ));
+                layers.push((l, Tensor::cat(vec![f.reshape([b, s, p, c]), g.clone()], 3)));
+            }
+            last_global = Some(g);
+        }
+        if placement == Some(TemporalPlacement::PostLayer) {
+            let mut y = last_global.expect("the aggregator has at least one layer");
+            for (t, g) in tap_globals.into_iter().enumerate() {
+                y = self.temporal_block(t, y);
+                time_list.push(Tensor::cat(vec![g, y.clone()], 3));
             }
         }
         AggregatorOutput {
@@ -178,5 +217,17 @@ impl Aggregator {
             norm_images,
             patch_start: n_special,
         }
+    }
+
+    /// Temporal block `t` on `[B, S, P, C]` tokens: each token slot attends over the S frames
+    /// (no positional encoding in time, as in the release).
+    fn temporal_block(&self, t: usize, tokens: Tensor<4>) -> Tensor<4> {
+        let [b, s, p, c] = tokens.dims();
+        // [B, S, P, C] -> [B*P, S, C]: a sequence over time for each token slot.
+        let seq = tokens.swap_dims(1, 2).reshape([b * p, s, c]);
+        self.time_blocks[t]
+            .forward(seq, None)
+            .reshape([b, p, s, c])
+            .swap_dims(1, 2)
     }
 }

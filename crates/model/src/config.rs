@@ -51,6 +51,73 @@ pub struct ModelConfig {
     pub image_size: [usize; 2],
     pub gaussian_scale_min: f64,
     pub gaussian_scale_max: f64,
+    /// How the motion head turns tokens into displacements (ablation table: "CML").
+    /// Defaulted, and left out of the serialised form when it is the paper's, so configs and
+    /// checkpoint metadata written before this switch existed still parse and mean the paper
+    /// model, and paper-model metadata stays readable by older builds.
+    #[serde(default, skip_serializing_if = "MotionModel::is_paper")]
+    pub motion_model: MotionModel,
+    /// Where the temporal blocks sit (ablation table: "In-layer" vs "Post-layer TAttn").
+    /// Defaulted and skipped when it is the paper's, for the same reason as `motion_model`.
+    #[serde(default, skip_serializing_if = "TemporalPlacement::is_paper")]
+    pub temporal_attention: TemporalPlacement,
+}
+
+/// Components of one 3D displacement or velocity.
+pub const DISPLACEMENT_DIM: usize = 3;
+/// Velocities per pixel in the linear-velocity baseline: one forward, one backward in time.
+pub const VELOCITY_DIRECTIONS: usize = 2;
+
+/// The motion model of the ablation table (paper §4.3, `tab:ablation`, column "CML").
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum MotionModel {
+    /// Conditioned motion lifting (paper §3.3): the motion tokens of source i are modulated by
+    /// the refined time token of every other timestamp j, and the motion head predicts one
+    /// displacement per (i, j) pair.
+    #[default]
+    Lifting,
+    /// The ablation baseline ("linear bidirectional velocity estimation", paper §4.3): the
+    /// motion head predicts, once per context frame, a forward and a backward velocity per
+    /// pixel, and a Gaussian of frame i reaches timestamp j by `v·(j − i)` (see
+    /// [`crate::motion::linear_displacements`]).
+    LinearVelocity,
+}
+
+impl MotionModel {
+    pub fn is_paper(&self) -> bool {
+        *self == MotionModel::Lifting
+    }
+
+    /// Output channels of the motion DPT head: one displacement per lifted (i, j) map, or
+    /// `[v_fwd | v_bwd]` per context frame.
+    pub fn head_channels(self) -> usize {
+        match self {
+            MotionModel::Lifting => DISPLACEMENT_DIM,
+            MotionModel::LinearVelocity => VELOCITY_DIRECTIONS * DISPLACEMENT_DIM,
+        }
+    }
+}
+
+/// Where the four temporal blocks run (paper §4.3, `tab:ablation`: "In-layer" or
+/// "Post-layer TAttn").
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum TemporalPlacement {
+    /// Paper §3.2: after the global blocks of `temporal_layers`; each output continues into
+    /// the next frozen layer, so the DPT taps and camera tokens see the temporal cues.
+    #[default]
+    InLayer,
+    /// The ablation: the frozen layers run untouched (taps and camera tokens are plain VGGT)
+    /// and the same four blocks are stacked after the last layer, feeding only the motion
+    /// tokens (see [`crate::aggregator`]).
+    PostLayer,
+}
+
+impl TemporalPlacement {
+    pub fn is_paper(&self) -> bool {
+        *self == TemporalPlacement::InLayer
+    }
 }
 
 /// Constants of the architecture that no released checkpoint varies.
@@ -93,6 +160,8 @@ impl ModelConfig {
             image_size: [350, 518],
             gaussian_scale_min: 0.5,
             gaussian_scale_max: 15.0,
+            motion_model: MotionModel::Lifting,
+            temporal_attention: TemporalPlacement::InLayer,
         }
     }
 
@@ -224,6 +293,9 @@ impl ModelConfig {
                 self.gaussian_scale_min, self.gaussian_scale_max
             ));
         }
+        // Every (motion_model, temporal_attention) pair is a network the ablation table
+        // trains: both motion models read the four `time_list` maps, which both placements
+        // produce, so no combination is refused here.
         Ok(())
     }
 }

@@ -2,12 +2,12 @@
 //! temporal blocks → future-pose module → camera head (→ poses), plus the DPT heads.
 
 use crate::adapter::{adapt, AdaptedGaussians, OpacityMapping, ScaleRange};
-use crate::aggregator::{Aggregator, AggregatorOutput};
+use crate::aggregator::{Aggregator, AggregatorOutput, Temporal};
 use crate::camera_head::CameraHead;
 use crate::config::ModelConfig;
 use crate::dpt::{depth_activation, DptHead, DptKind};
 use crate::future::{FuturePose, FutureTokens};
-use crate::motion::lift;
+use crate::motion::{displacements, motion_tokens};
 use crate::pose::pose_encoding_to_extri_intri;
 use burn::module::Module;
 use burn::tensor::{Device, Tensor};
@@ -98,7 +98,7 @@ impl Envision4d {
             future: FuturePose::new(cfg, device),
             depth_head: dpt(DptKind::Depth),
             gs_head: dpt(DptKind::Gaussians),
-            motion_head: dpt(DptKind::Motion),
+            motion_head: dpt(DptKind::Motion(cfg.motion_model)),
             temporal_layers: cfg.temporal_layers,
             scale_min: cfg.gaussian_scale_min,
             scale_max: cfg.gaussian_scale_max,
@@ -135,24 +135,18 @@ impl Envision4d {
             )
         });
         let (motion_enc, motion_tokens) = if heads.motion {
-            let lifted: [Tensor<4>; 4] = std::array::from_fn(|t| {
-                lift(
-                    agg.time_list[t].clone(),
-                    backbone.tokens.time.clone(),
-                    agg.patch_start,
-                )
-            });
-            // Lifted maps carry patch tokens only, so they start at index 0.
-            (
-                Some(self.motion_head.forward_chunked(
-                    &lifted,
-                    0,
-                    [h, w],
-                    None,
-                    self.dpt_frame_chunk,
-                )),
-                Some(lifted),
-            )
+            let model = self
+                .motion_head
+                .motion_model()
+                .expect("motion_head is built as a motion head");
+            let time = backbone.tokens.time.clone();
+            let n = time.dims()[1];
+            let tokens = motion_tokens(model, &agg.time_list, time, agg.patch_start);
+            // The motion maps carry patch tokens only, so they start at index 0.
+            let raw =
+                self.motion_head
+                    .forward_chunked(&tokens, 0, [h, w], None, self.dpt_frame_chunk);
+            (Some(displacements(model, raw, n)), Some(tokens))
         } else {
             (None, None)
         };
@@ -231,5 +225,61 @@ impl Envision4d {
                 max: self.scale_max,
             },
         ))
+    }
+
+    /// Plain VGGT on `images [B, S, 3, H, W]`: the aggregator without its temporal blocks,
+    /// the camera head on every frame's own camera token (no future-pose module), and the
+    /// depth head when `depth` is [`VggtDepth::Run`]. This is the backbone stage's network and
+    /// the frozen distillation teacher (paper §3.4: "a frozen VGGT backbone").
+    pub fn vggt(&self, images: Tensor<5>, depth: VggtDepth) -> VggtOutput {
+        let [_, _, _, h, w] = images.dims();
+        let last = self.aggregator.frame_blocks.len() - 1;
+        let mut keep = self.temporal_layers.to_vec();
+        keep.push(last);
+        let agg = self.aggregator.forward_with(images, &keep, Temporal::Skip);
+        let top = agg.layer(last);
+        let [b, s, _, c2] = top.dims();
+        let camera_tokens = top.slice([0..b, 0..s, 0..1, 0..c2]).reshape([b, s, c2]);
+        let pose_enc_iters = self.camera_head.forward(camera_tokens);
+        let depth = match depth {
+            VggtDepth::Run => {
+                let taps: [Tensor<4>; 4] = self.temporal_layers.map(|l| agg.layer(l));
+                let (d, c) = depth_activation(self.depth_head.forward_chunked(
+                    &taps,
+                    agg.patch_start,
+                    [h, w],
+                    None,
+                    self.dpt_frame_chunk,
+                ));
+                Some((d, c))
+            }
+            VggtDepth::Skip => None,
+        };
+        VggtOutput {
+            pose_enc_iters,
+            depth,
+        }
+    }
+}
+
+/// Whether [`Envision4d::vggt`] runs the depth head.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum VggtDepth {
+    Run,
+    Skip,
+}
+
+/// Outputs of [`Envision4d::vggt`].
+#[derive(Debug, Clone)]
+pub struct VggtOutput {
+    /// `[B, S, 9]` after each camera-head iteration; the last is the prediction.
+    pub pose_enc_iters: Vec<Tensor<3>>,
+    /// `([B, S, H, W, 1]` depth, `[B, S, H, W]` confidence`)`.
+    pub depth: Option<(Tensor<5>, Tensor<4>)>,
+}
+
+impl VggtOutput {
+    pub fn pose_enc(&self) -> Tensor<3> {
+        self.pose_enc_iters.last().expect("camera head ran").clone()
     }
 }

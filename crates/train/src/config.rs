@@ -207,6 +207,13 @@ pub struct RunConfig {
     pub log_every: u64,
     pub checkpoint_every: u64,
     pub keep_checkpoints: usize,
+    /// Validation on held-out clips every this many steps (0 = never).
+    pub val_every: u64,
+    /// Validation clips used (the first ones of the seeded validation split).
+    pub val_clips: usize,
+    /// Consecutive non-finite steps after which the run stops (the last good checkpoint
+    /// stays intact).
+    pub max_nonfinite_steps: u64,
 }
 
 impl Default for RunConfig {
@@ -217,6 +224,9 @@ impl Default for RunConfig {
             // STORM checkpoints every 5 000 iterations.
             checkpoint_every: 5_000,
             keep_checkpoints: 3,
+            val_every: 5_000,
+            val_clips: 8,
+            max_nonfinite_steps: 10,
         }
     }
 }
@@ -263,6 +273,8 @@ pub struct TrainConfig {
     pub freeze: Vec<FreezeGroup>,
     /// Initial weights (VGGT-1B release or a stage-1 checkpoint); random init when absent.
     pub init_checkpoint: Option<PathBuf>,
+    /// Weights of the frozen teacher (`teacher = "backbone"`); default `init_checkpoint`.
+    pub teacher_checkpoint: Option<PathBuf>,
     pub model: ModelConfig,
     pub optim: OptimConfig,
     pub loss: LossConfig,
@@ -284,6 +296,8 @@ pub(crate) struct RawTrainConfig {
     pub freeze: Vec<FreezeGroup>,
     #[serde(default)]
     pub init_checkpoint: Option<PathBuf>,
+    #[serde(default)]
+    pub teacher_checkpoint: Option<PathBuf>,
     pub model: toml::Table,
     #[serde(default)]
     pub optim: OptimConfig,

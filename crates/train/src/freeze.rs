@@ -108,3 +108,29 @@ pub fn grad_abs_sum<M: Module>(module: &M, grads: &Gradients) -> Option<f64> {
     module.visit(&mut v);
     v.found.then_some(v.sum)
 }
+
+struct GradFinite<'a> {
+    grads: &'a Gradients,
+    /// Σ|g| over every gradient, accumulated on the device (one host sync at the end).
+    acc: Option<Tensor<1>>,
+}
+
+impl ModuleVisitor for GradFinite<'_> {
+    fn visit_float<const D: usize>(&mut self, param: &Param<Tensor<D>>) {
+        if let Some(g) = param.val().grad(self.grads) {
+            let s = g.abs().sum();
+            self.acc = Some(match self.acc.take() {
+                None => s,
+                Some(a) => a + s,
+            });
+        }
+    }
+}
+
+/// Whether every gradient of `module` in `grads` is finite (a NaN or inf anywhere makes the
+/// sum non-finite).
+pub fn grads_finite<M: Module>(module: &M, grads: &Gradients) -> bool {
+    let mut v = GradFinite { grads, acc: None };
+    module.visit(&mut v);
+    v.acc.is_none_or(|a| a.into_data().iter::<f64>().all(f64::is_finite))
+}

@@ -4,6 +4,7 @@
 
 use crate::config::*;
 use crate::error::{Result, TrainError};
+use envision4d_model::config::{MotionModel as ModelMotion, TemporalPlacement as ModelPlacement};
 use envision4d_model::ModelConfig;
 use std::path::Path;
 
@@ -23,13 +24,19 @@ pub fn parse(text: &str, path: &Path) -> Result<TrainConfig> {
         message,
     };
     let raw: RawTrainConfig = toml::from_str(text).map_err(|e| parse_err(e.to_string()))?;
-    let model = resolve_model(raw.model).map_err(parse_err)?;
+    let model_sets = ModelSets {
+        motion: raw.model.contains_key(MODEL_MOTION_KEY),
+        temporal: raw.model.contains_key(MODEL_TEMPORAL_KEY),
+    };
+    let mut model = resolve_model(raw.model).map_err(parse_err)?;
+    apply_ablation(&mut model, &raw.ablation, model_sets)?;
     let cfg = TrainConfig {
         stage: raw.stage,
         seed: raw.seed,
         teacher: raw.teacher,
         freeze: raw.freeze,
         init_checkpoint: raw.init_checkpoint,
+        teacher_checkpoint: raw.teacher_checkpoint,
         model,
         optim: raw.optim,
         loss: raw.loss,
@@ -57,6 +64,66 @@ fn resolve_model(mut table: toml::Table) -> std::result::Result<ModelConfig, Str
     toml::Value::Table(merged)
         .try_into()
         .map_err(|e: toml::de::Error| format!("[model]: {e}"))
+}
+
+/// `[model]` keys of the two architecture ablations; `[ablation]` decides them.
+const MODEL_MOTION_KEY: &str = "motion_model";
+const MODEL_TEMPORAL_KEY: &str = "temporal_attention";
+
+/// Which ablation keys the `[model]` table set itself (they must then agree).
+#[derive(Debug, Clone, Copy)]
+struct ModelSets {
+    motion: bool,
+    temporal: bool,
+}
+
+/// The model's architecture switches that `[ablation]` names.
+fn ablation_switches(a: &AblationConfig) -> (ModelMotion, ModelPlacement) {
+    let motion = match a.motion {
+        MotionModel::Lifting => ModelMotion::Lifting,
+        MotionModel::LinearVelocity => ModelMotion::LinearVelocity,
+    };
+    let placement = match a.temporal_attention {
+        TemporalAttention::InLayer => ModelPlacement::InLayer,
+        TemporalAttention::PostLayer => ModelPlacement::PostLayer,
+    };
+    (motion, placement)
+}
+
+/// A value as the TOML file spells it (`"linear_velocity"`).
+fn toml_name<T: serde::Serialize + std::fmt::Debug>(v: &T) -> String {
+    toml::Value::try_from(v).map_or_else(|_| format!("{v:?}"), |t| t.to_string())
+}
+
+/// Sets the model's architecture switches from `[ablation]`, the one place a run names its
+/// ablation. A `[model]` value that disagrees is an error naming both keys, rather than one
+/// silently winning.
+fn apply_ablation(model: &mut ModelConfig, a: &AblationConfig, sets: ModelSets) -> Result<()> {
+    let (motion, placement) = ablation_switches(a);
+    if sets.motion && model.motion_model != motion {
+        return Err(TrainError::invalid(
+            "model.motion_model",
+            toml_name(&model.motion_model),
+            format!(
+                "disagrees with ablation.motion = {}; set only ablation.motion",
+                toml_name(&a.motion)
+            ),
+        ));
+    }
+    if sets.temporal && model.temporal_attention != placement {
+        return Err(TrainError::invalid(
+            "model.temporal_attention",
+            toml_name(&model.temporal_attention),
+            format!(
+                "disagrees with ablation.temporal_attention = {}; \
+                 set only ablation.temporal_attention",
+                toml_name(&a.temporal_attention)
+            ),
+        ));
+    }
+    model.motion_model = motion;
+    model.temporal_attention = placement;
+    Ok(())
 }
 
 fn overlay(base: &mut toml::Table, over: toml::Table) {
@@ -126,20 +193,32 @@ pub fn validate(cfg: &TrainConfig) -> Result<()> {
         return Err(TrainError::invalid("progressive.s_max", 0, "must be >= 1"));
     }
     non_negative("progressive.alpha0", p.alpha0)?;
-    // The model crate implements only the paper's variants so far: refuse the others here
-    // rather than silently training the wrong network.
-    if cfg.ablation.motion != MotionModel::Lifting {
+    // A config edited after `parse` must still train the network its ablation names.
+    let (motion, placement) = ablation_switches(&cfg.ablation);
+    if (cfg.model.motion_model, cfg.model.temporal_attention) != (motion, placement) {
         return Err(TrainError::invalid(
-            "ablation.motion",
-            "\"linear_velocity\"",
-            "not implemented by envision4d-model yet (only \"lifting\")",
+            "ablation",
+            format!(
+                "motion = {}, temporal_attention = {}",
+                toml_name(&cfg.ablation.motion),
+                toml_name(&cfg.ablation.temporal_attention)
+            ),
+            format!(
+                "the model is built with motion_model = {}, temporal_attention = {}",
+                toml_name(&cfg.model.motion_model),
+                toml_name(&cfg.model.temporal_attention)
+            ),
         ));
     }
-    if cfg.ablation.temporal_attention != TemporalAttention::InLayer {
+    if cfg.teacher == Teacher::Backbone
+        && cfg.stage == Stage::Envision4d
+        && cfg.teacher_checkpoint.is_none()
+        && cfg.init_checkpoint.is_none()
+    {
         return Err(TrainError::invalid(
-            "ablation.temporal_attention",
-            "\"post_layer\"",
-            "not implemented by envision4d-model yet (only \"in_layer\")",
+            "teacher",
+            "\"backbone\"",
+            "needs teacher_checkpoint (or init_checkpoint): the frozen backbone's weights",
         ));
     }
     if cfg.data.stride == 0 {

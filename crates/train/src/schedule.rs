@@ -10,6 +10,8 @@ pub enum Phase {
     Warmup,
     /// All N frames, self-exclusive, motion applied, progressively weighted.
     Progressive,
+    /// The backbone stage: supervised on ground truth, no rendering.
+    Supervised,
 }
 
 /// Everything the schedule needs, copied out of a [`TrainConfig`].

@@ -6,24 +6,19 @@
 use crate::batch::Batch;
 use crate::config::{ClipMode, Stage, Teacher, TrainConfig};
 use crate::error::{Result, TrainError};
-use crate::freeze::ParamSplit;
+use crate::freeze::{grads_finite, ParamSplit};
 use crate::schedule::{Phase, Schedule};
 use burn::grad_clipping::GradientClippingConfig;
 use burn::optim::{AdamConfig, GradientsParams, ModuleOptimizer};
 use burn::tensor::{Device, Tensor};
 use envision4d_losses::{camera_distill, LpipsNet, LpipsStatus, RgbLoss};
-use envision4d_model::adapter::{gaussians_at, AdaptedGaussians, Exclusion, OpacityMapping};
+use crate::backbone::{backbone_loss, masked_l1, FrozenTeacher};
+use crate::infer::{predict_scene, Scene};
+use envision4d_model::adapter::{gaussians_at, AdaptedGaussians, Exclusion};
 use envision4d_model::checkpoint::CheckpointKind;
-use envision4d_model::model::Heads;
-use envision4d_model::pose::pose_encoding_to_extri_intri;
 use envision4d_model::Envision4d;
 use envision4d_splat::{render, Cameras, Gaussians, RasterConfig};
 
-/// FoV channels of the 9-d pose encoding (`fov_h`, `fov_w`).
-const FOV_CHANNELS: std::ops::Range<usize> = 7..9;
-/// FoV clamp (radians): ~3° to ~172°, wider than any real camera.
-const FOV_MIN_RAD: f64 = 0.05;
-const FOV_MAX_RAD: f64 = 3.0;
 
 /// Loss terms of one step (scalar tensors `[1]`, still attached to the graph).
 #[derive(Debug, Clone)]
@@ -31,6 +26,8 @@ pub struct LossTerms {
     pub total: Tensor<1>,
     /// Weighted mean of per-frame L_rgb.
     pub rgb: Tensor<1>,
+    /// Unweighted mean MSE of the rendered frames (detached; for PSNR in logs).
+    pub rgb_mse: Option<Tensor<1>>,
     pub camera: Option<Tensor<1>>,
     pub depth: Option<Tensor<1>>,
     pub phase: Phase,
@@ -44,6 +41,8 @@ pub struct StepReport {
     pub rgb: f64,
     pub camera: f64,
     pub depth: f64,
+    /// PSNR (dB) of the step's renders from their unweighted MSE (envision4d stage).
+    pub psnr: Option<f64>,
     pub lr: f64,
     pub phase: Phase,
     pub outcome: StepOutcome,
@@ -52,8 +51,16 @@ pub struct StepReport {
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum StepOutcome {
     Applied,
-    /// The loss was not finite: no update, counted in `Trainer::skipped`.
-    SkippedNonFinite,
+    /// The loss (or a prediction it needs) was not finite: no update, counted.
+    SkippedNonFiniteLoss,
+    /// A gradient was not finite: no update, counted.
+    SkippedNonFiniteGradient,
+}
+
+impl StepOutcome {
+    pub fn applied(self) -> bool {
+        self == StepOutcome::Applied
+    }
 }
 
 /// Renders target frames `targets` of batch element `b` (each from `gaussians_at(.., j,
@@ -113,25 +120,18 @@ pub struct Trainer {
     pub raster: RasterConfig,
     rgb_loss: RgbLoss,
     optim: ModuleOptimizer,
+    teacher: Option<FrozenTeacher>,
     /// The next step to run (0-based).
     pub step: u64,
-    /// Steps skipped for a non-finite loss.
+    /// Steps skipped for a non-finite loss or gradient.
     pub skipped: u64,
+    /// Skipped steps in a row (reset by an applied step): the NaN guard's counter.
+    pub consecutive_nonfinite: u64,
 }
 
 impl Trainer {
     /// Builds the model on `device` (must be an autodiff device for [`Trainer::step`]).
     pub fn new(config: TrainConfig, device: &Device) -> Result<Self> {
-        if config.stage != Stage::Envision4d {
-            return Err(TrainError::invalid(
-                "stage",
-                "\"backbone\"",
-                "stage-1 training is not in this build yet; only \"envision4d\" trains",
-            ));
-        }
-        if config.teacher == Teacher::Backbone {
-            return Err(TrainError::invalid("teacher", "\"backbone\"", "the frozen-backbone teacher is not in this build yet; use \"ground_truth\" or \"none\""));
-        }
         // Seed the device RNG so the random init (and hence the run) is reproducible.
         device.seed(config.seed);
         let model = build_model(&config, device)?;
@@ -139,6 +139,19 @@ impl Trainer {
             LpipsStatus::from_path(config.loss.lpips_weights.as_deref(), LpipsNet::Vgg, device)?;
         let rgb_loss = RgbLoss::new(config.loss.lambda_lpips, &lpips)?;
         let split = ParamSplit::new(&model, &config.freeze);
+        let teacher = match (config.stage, config.teacher) {
+            (Stage::Envision4d, Teacher::Backbone) => {
+                let path = config
+                    .teacher_checkpoint
+                    .as_ref()
+                    .or(config.init_checkpoint.as_ref())
+                    .ok_or_else(|| {
+                        TrainError::invalid("teacher_checkpoint", "(none)", "teacher = \"backbone\" needs weights")
+                    })?;
+                Some(FrozenTeacher::load(&config.model, path, device)?)
+            }
+            _ => None,
+        };
         let clip = match config.optim.grad_clip {
             ClipMode::Norm => Some(GradientClippingConfig::Norm(
                 config.optim.grad_clip_threshold as f32,
@@ -158,13 +171,34 @@ impl Trainer {
             raster: RasterConfig::default(),
             rgb_loss,
             optim,
+            teacher,
             step: 0,
             skipped: 0,
+            consecutive_nonfinite: 0,
         })
     }
 
-    /// The loss of `batch` at schedule step `step` (forward only).
+    /// The loss of `batch` at schedule step `step` (forward only), for the configured stage.
     pub fn loss(&self, batch: &Batch, step: u64) -> Result<LossTerms> {
+        match self.config.stage {
+            Stage::Backbone => {
+                let l = &self.config.loss;
+                let t = backbone_loss(&self.model, batch, l.lambda_cam, l.lambda_depth)?;
+                Ok(LossTerms {
+                    total: t.total,
+                    rgb: Tensor::zeros([1], &batch.images.device()),
+                    rgb_mse: None,
+                    camera: Some(t.camera),
+                    depth: Some(t.depth),
+                    phase: Phase::Supervised,
+                })
+            }
+            Stage::Envision4d => self.envision4d_loss(batch, step),
+        }
+    }
+
+    /// The paper's loss (§3.4): progressive, self-exclusive rendering plus distillation.
+    fn envision4d_loss(&self, batch: &Batch, step: u64) -> Result<LossTerms> {
         let m = &self.config.model;
         let (tc, n) = (m.context_frames, m.num_frames());
         let [bsz, frames, _, h, w] = batch.images.dims();
@@ -177,44 +211,22 @@ impl Trainer {
             .images
             .clone()
             .slice([0..bsz, 0..tc, 0..3, 0..h, 0..w]);
-        let mut pred = self.model.forward(context, Heads::ALL);
-        let pose = pred.backbone.pose_enc();
-        if !pose.clone().into_data().iter::<f64>().all(f64::is_finite) {
-            return Err(TrainError::NonFinite("pose encoding"));
-        }
-        // Workaround: the camera head's FoV activation is a ReLU, so an untrained head can
-        // predict FoV 0 (infinite focal) and the renderer rightly refuses the camera. Clamp
-        // the FoV channels into a sane range (gradient passes inside it) and rebuild the
-        // cameras that adapt and render use.
-        let [bq, nq, _] = pose.dims();
-        let fov = pose
-            .clone()
-            .slice([0..bq, 0..nq, FOV_CHANNELS])
-            .clamp(FOV_MIN_RAD, FOV_MAX_RAD);
-        let pose = pose.slice_assign([0..bq, 0..nq, FOV_CHANNELS], fov);
-        let (extr, intr) = pose_encoding_to_extri_intri(pose, h, w);
-        pred.backbone.extrinsics = extr;
-        pred.backbone.intrinsics = intr;
-        let adapted = self
-            .model
-            .adapt(&pred, OpacityMapping::default(), step)
-            .ok_or_else(|| {
-                TrainError::Model("adapt needs the depth, Gaussian and motion heads".into())
-            })?;
+        let Scene { pred, adapted } = predict_scene(&self.model, context, step)?;
         let phase = self.schedule.phase(step);
         let (targets, exclusion): (Vec<usize>, _) = match phase {
             Phase::Warmup => ((0..tc).collect(), Exclusion::IncludeOwn),
-            Phase::Progressive => ((0..n).collect(), Exclusion::SelfExclusive),
+            Phase::Progressive | Phase::Supervised => ((0..n).collect(), Exclusion::SelfExclusive),
         };
         let weights = match phase {
             Phase::Warmup => vec![1.0; n],
-            Phase::Progressive => self.schedule.frame_weights(step, tc, n),
+            Phase::Progressive | Phase::Supervised => self.schedule.frame_weights(step, tc, n),
         };
         let device = batch.images.device();
         let wt: Vec<f32> = targets.iter().map(|&j| weights[j] as f32).collect();
         let wt = Tensor::<1>::from_floats(wt.as_slice(), &device);
         let bb = &pred.backbone;
         let mut rgb_sum = Tensor::<1>::zeros([1], &device);
+        let mut mse_sum = Tensor::<1>::zeros([1], &device);
         for b in 0..bsz {
             let rendered = render_targets(
                 &adapted,
@@ -238,33 +250,45 @@ impl Trainer {
                     .collect(),
                 0,
             );
-            let per_frame = self.rgb_loss.per_frame(rendered, gt)?.total;
-            rgb_sum = rgb_sum + (per_frame * wt.clone()).sum();
+            let terms = self.rgb_loss.per_frame(rendered, gt)?;
+            mse_sum = mse_sum + terms.mse.sum().detach();
+            rgb_sum = rgb_sum + (terms.total * wt.clone()).sum();
         }
         // Σ_t w̄_t·L_rgb,t / N_rendered, averaged over the batch.
         let rgb = rgb_sum / (bsz * targets.len()) as f64;
         let mut total = rgb.clone();
         let (mut camera, mut depth) = (None, None);
-        if let (Teacher::GroundTruth, Some(t)) = (self.config.teacher, &batch.teacher) {
-            let cam = camera_distill(bb.pose_enc(), t.pose_enc.clone().detach())?;
+        let labels = match self.config.teacher {
+            Teacher::None => None,
+            Teacher::GroundTruth => Some(batch.teacher.clone().ok_or_else(|| {
+                TrainError::Batch(
+                    "teacher = \"ground_truth\" but the batch carries no targets".into(),
+                )
+            })?),
+            Teacher::Backbone => {
+                let teacher = self.teacher.as_ref().ok_or_else(|| {
+                    TrainError::Model("teacher = \"backbone\" but no teacher is loaded".into())
+                })?;
+                Some(teacher.targets(batch.images.clone(), tc)?)
+            }
+        };
+        if let Some(t) = labels {
+            let cam = camera_distill(bb.pose_enc(), t.pose_enc.detach())?;
             let d = pred
                 .depth
                 .clone()
                 .ok_or_else(|| TrainError::Model("depth head did not run".into()))?;
-            let dl = masked_l1(d, t.depth.clone().detach());
+            let dl = masked_l1(d, t.depth.detach());
             total = total
                 + cam.clone() * self.config.loss.lambda_cam
                 + dl.clone() * self.config.loss.lambda_depth;
             camera = Some(cam);
             depth = Some(dl);
-        } else if self.config.teacher == Teacher::GroundTruth {
-            return Err(TrainError::Batch(
-                "teacher = \"ground_truth\" but the batch carries no targets".into(),
-            ));
         }
         Ok(LossTerms {
             total,
             rgb,
+            rgb_mse: Some(mse_sum / (bsz * targets.len()) as f64),
             camera,
             depth,
             phase,
@@ -280,15 +304,17 @@ impl Trainer {
             Err(TrainError::NonFinite(_)) => {
                 self.step += 1;
                 self.skipped += 1;
+                self.consecutive_nonfinite += 1;
                 return Ok(StepReport {
                     step,
                     total: f64::NAN,
                     rgb: f64::NAN,
                     camera: f64::NAN,
                     depth: f64::NAN,
+                    psnr: None,
                     lr,
                     phase: self.schedule.phase(step),
-                    outcome: StepOutcome::SkippedNonFinite,
+                    outcome: StepOutcome::SkippedNonFiniteLoss,
                 });
             }
             Err(e) => return Err(e),
@@ -300,6 +326,7 @@ impl Trainer {
             rgb: scalar(&terms.rgb),
             camera: terms.camera.as_ref().map_or(0.0, scalar),
             depth: terms.depth.as_ref().map_or(0.0, scalar),
+            psnr: terms.rgb_mse.as_ref().map(|m| -10.0 * scalar(m).log10()),
             lr,
             phase: terms.phase,
             outcome,
@@ -307,21 +334,21 @@ impl Trainer {
         self.step += 1;
         if !total.is_finite() {
             self.skipped += 1;
-            return Ok(report(StepOutcome::SkippedNonFinite));
+            self.consecutive_nonfinite += 1;
+            return Ok(report(StepOutcome::SkippedNonFiniteLoss));
         }
         let mut grads = terms.total.backward();
+        if !grads_finite(&self.model, &grads) {
+            self.skipped += 1;
+            self.consecutive_nonfinite += 1;
+            return Ok(report(StepOutcome::SkippedNonFiniteGradient));
+        }
         // Frozen parameters get no gradient entry, so Adam leaves them untouched.
         let gp = GradientsParams::from_params(&mut grads, &self.model, &self.split.trainable);
         self.model = self.optim.step(lr, self.model.clone(), gp);
+        self.consecutive_nonfinite = 0;
         Ok(report(StepOutcome::Applied))
     }
-}
-
-/// Mean |d − t| over pixels with a valid target (t > 0; the synthetic sky has depth 0).
-fn masked_l1(pred: Tensor<5>, target: Tensor<5>) -> Tensor<1> {
-    let mask = target.clone().greater_elem(0.0).float();
-    let count = mask.clone().sum().clamp_min(1.0);
-    ((pred - target).abs() * mask).sum() / count
 }
 
 /// The model of a config, from `init_checkpoint` when given.
@@ -377,4 +404,23 @@ pub fn build_model(config: &TrainConfig, device: &Device) -> Result<Envision4d> 
             .map_err(|e| TrainError::Model(format!("init_checkpoint {}: {e}", path.display())))?;
     }
     Ok(model)
+}
+
+impl Trainer {
+    /// The optimiser's state (Adam moments per parameter id) for a checkpoint.
+    pub fn optimizer_record(&self) -> burn::optim::OptimizerRecord {
+        self.optim.to_record()
+    }
+
+    /// Restores the optimiser's state saved by [`Trainer::optimizer_record`]; the model's
+    /// parameter ids must be the saved ones (see `checkpoint::restore_param_ids`).
+    pub fn load_optimizer_record(&mut self, record: burn::optim::OptimizerRecord) {
+        let optim = std::mem::replace(&mut self.optim, AdamConfig::new().init());
+        self.optim = optim.load_record(record);
+    }
+
+    /// Recomputes the frozen/trainable split (after parameter ids changed).
+    pub fn refresh_split(&mut self) {
+        self.split = ParamSplit::new(&self.model, &self.config.freeze);
+    }
 }

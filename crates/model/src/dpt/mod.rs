@@ -9,7 +9,7 @@
 pub mod fusion;
 pub mod pos_embed;
 
-use crate::config::DptConfig;
+use crate::config::{DptConfig, MotionModel};
 use crate::resample::bilinear_align_corners;
 use burn::module::Module;
 use burn::nn::conv::{Conv2d, Conv2dConfig, ConvTranspose2d, ConvTranspose2dConfig};
@@ -29,8 +29,9 @@ pub enum DptKind {
     Depth,
     /// 11 raw channels, with the image merged in through `input_merger`.
     Gaussians,
-    /// 3 raw channels (displacements).
-    Motion,
+    /// Raw motion channels, no activation: 3 (displacements) for conditioned motion lifting,
+    /// 6 (forward | backward velocity) for the linear-velocity baseline.
+    Motion(MotionModel),
 }
 
 impl DptKind {
@@ -38,7 +39,7 @@ impl DptKind {
         match self {
             DptKind::Depth => 2,
             DptKind::Gaussians => crate::config::GAUSSIAN_DIM,
-            DptKind::Motion => 3,
+            DptKind::Motion(m) => m.head_channels(),
         }
     }
 }
@@ -78,6 +79,10 @@ pub struct DptHead {
     /// `input_merger.0` of the Gaussian head: 7x7 conv of the normalised image.
     pub input_merger: Option<Conv2d>,
     pub patch_size: usize,
+    /// What the head predicts; kept (not a parameter) so the forward pass can read the motion
+    /// head's motion model without a second source of truth.
+    #[module(skip)]
+    pub kind: DptKind,
 }
 
 impl DptHead {
@@ -126,6 +131,15 @@ impl DptHead {
                     .init(device)
             }),
             patch_size,
+            kind,
+        }
+    }
+
+    /// The motion model of a motion head; `None` for the depth and Gaussian heads.
+    pub fn motion_model(&self) -> Option<MotionModel> {
+        match self.kind {
+            DptKind::Motion(m) => Some(m),
+            DptKind::Depth | DptKind::Gaussians => None,
         }
     }
 

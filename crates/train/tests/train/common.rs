@@ -4,6 +4,7 @@ use burn::module::{Module, ModuleVisitor, Param};
 use burn::tensor::{Device, Tensor};
 use envision4d_data::synth::{render_clip, Preset, SynthConfig};
 use envision4d_train::batch::{Batch, HostClip};
+use envision4d_train::config::Teacher;
 use envision4d_train::TrainConfig;
 use std::path::PathBuf;
 
@@ -17,9 +18,22 @@ pub fn config_path(name: &str) -> PathBuf {
         .join(name)
 }
 
-/// `configs/synth-tiny.toml` with the caller's tweaks.
+/// `configs/synth-tiny.toml` made self-contained for tests: random init (no stage-1
+/// checkpoint on a fresh machine), exact labels, nothing frozen, T_f = 2, short warm-up.
 pub fn tiny_config() -> TrainConfig {
-    envision4d_train::load(&config_path("synth-tiny.toml")).expect("synth-tiny.toml parses")
+    let mut c =
+        envision4d_train::load(&config_path("synth-tiny.toml")).expect("synth-tiny.toml parses");
+    c.init_checkpoint = None;
+    c.teacher_checkpoint = None;
+    c.teacher = Teacher::GroundTruth;
+    c.freeze = vec![];
+    c.model.future_frames = FRAMES - c.model.context_frames;
+    c.optim.batch_size = 1;
+    c.optim.lr = 1e-3;
+    c.progressive.warmup_iterations = 20;
+    c.progressive.s_max = 100;
+    c.loss.lambda_depth = 1.0;
+    c
 }
 
 pub fn synth_clip(seed: u64) -> HostClip {
@@ -74,4 +88,22 @@ pub fn flat_params<M: Module>(m: &M) -> Vec<f32> {
     let mut f = Flat(vec![]);
     m.visit(&mut f);
     f.0
+}
+
+/// Writes `clips` synthetic clips of `frames` frames (tiny size) under `root` as the
+/// synthetic layout, so a run can open them as a dataset.
+pub fn write_synth_dataset(root: &std::path::Path, clips: u64, frames: usize) {
+    use envision4d_data::synth::write_clip;
+    for i in 0..clips {
+        let cfg = SynthConfig {
+            width: W,
+            height: H,
+            frames,
+            preset: Preset::Urban,
+            seed: 11,
+            supersample: 1,
+        };
+        let r = render_clip(&cfg, i, || {}).expect("synthetic clip renders");
+        write_clip(&root.join(format!("clip_{i:06}")), &r).expect("clip written");
+    }
 }

@@ -60,7 +60,7 @@ fn config_typo_is_rejected_naming_the_key() {
 #[test]
 fn invalid_value_names_key_and_value() {
     let text = std::fs::read_to_string(config_path("synth-tiny.toml")).unwrap();
-    let bad = text.replace("lr = 1e-3", "lr = -1.0");
+    let bad = text.replace("\nlr = 5e-4", "\nlr = -1.0");
     let err = envision4d_train::parse(&bad, Path::new("x.toml"))
         .unwrap_err()
         .to_string();
@@ -71,6 +71,100 @@ fn invalid_value_names_key_and_value() {
         .to_string();
     assert!(
         err.contains("loss.lambda_lpips") && err.contains("lpips_weights"),
+        "{err}"
+    );
+}
+
+/// Guards the `[ablation]` switches against being parsed but not reaching the network (they
+/// used to be refused as "not implemented"): each value builds its model variant, and the
+/// defaults build the paper model.
+#[test]
+fn ablation_switches_select_the_model_variant() {
+    use envision4d_model::config::{MotionModel, TemporalPlacement};
+    let text = std::fs::read_to_string(config_path("synth-tiny.toml")).unwrap();
+    let paper = envision4d_train::parse(&text, Path::new("paper.toml")).unwrap();
+    assert_eq!(paper.model.motion_model, MotionModel::Lifting);
+    assert_eq!(paper.model.temporal_attention, TemporalPlacement::InLayer);
+    for (motion, temporal, want) in [
+        (
+            "linear_velocity",
+            "in_layer",
+            (MotionModel::LinearVelocity, TemporalPlacement::InLayer),
+        ),
+        (
+            "lifting",
+            "post_layer",
+            (MotionModel::Lifting, TemporalPlacement::PostLayer),
+        ),
+        (
+            "linear_velocity",
+            "post_layer",
+            (MotionModel::LinearVelocity, TemporalPlacement::PostLayer),
+        ),
+    ] {
+        let ablated = format!(
+            "{text}\n[ablation]\nmotion = \"{motion}\"\ntemporal_attention = \"{temporal}\"\n"
+        );
+        let c = envision4d_train::parse(&ablated, Path::new("ablation.toml")).unwrap();
+        assert_eq!((c.model.motion_model, c.model.temporal_attention), want);
+    }
+}
+
+/// Guards against two sources of truth for the architecture: a `[model]` switch that
+/// disagrees with `[ablation]` is an error naming both keys; one that agrees is accepted.
+#[test]
+fn model_switch_disagreeing_with_ablation_is_rejected() {
+    let text = std::fs::read_to_string(config_path("synth-tiny.toml")).unwrap();
+    let with = |model_line: &str, ablation: &str| {
+        let t = text.replacen(
+            "preset = \"tiny\"",
+            &format!("preset = \"tiny\"\n{model_line}"),
+            1,
+        );
+        envision4d_train::parse(
+            &format!("{t}\n[ablation]\n{ablation}\n"),
+            Path::new("x.toml"),
+        )
+    };
+    let err = with("motion_model = \"linear_velocity\"", "motion = \"lifting\"")
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("model.motion_model") && err.contains("ablation.motion"),
+        "{err}"
+    );
+    let err = with(
+        "temporal_attention = \"post_layer\"",
+        "temporal_attention = \"in_layer\"",
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(
+        err.contains("model.temporal_attention") && err.contains("ablation.temporal_attention"),
+        "{err}"
+    );
+    let c = with(
+        "motion_model = \"linear_velocity\"",
+        "motion = \"linear_velocity\"",
+    )
+    .unwrap();
+    assert_eq!(
+        c.model.motion_model,
+        envision4d_model::config::MotionModel::LinearVelocity
+    );
+}
+
+/// Guards `validate` against a config whose ablation was changed after parsing: the model it
+/// would build no longer matches, so it is refused instead of training the wrong network.
+#[test]
+fn ablation_edited_after_parse_is_refused() {
+    let mut c = crate::common::tiny_config();
+    c.ablation.motion = envision4d_train::config::MotionModel::LinearVelocity;
+    let err = envision4d_train::load::validate(&c)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("ablation") && err.contains("motion_model"),
         "{err}"
     );
 }

@@ -2,5 +2,7 @@
 
 mod common;
 mod config;
+mod run;
+mod eval;
 mod schedule;
 mod step;

@@ -117,7 +117,7 @@ fn non_finite_loss_skips_step() {
     b.images = b.images.clone() * f32::NAN;
     let before = flat_params(&t.model.gs_head);
     let r = t.train_step(&b).unwrap();
-    assert_eq!(r.outcome, StepOutcome::SkippedNonFinite);
+    assert_eq!(r.outcome, StepOutcome::SkippedNonFiniteLoss);
     assert_eq!((t.skipped, t.step), (1, 1));
     assert_eq!(flat_params(&t.model.gs_head), before);
 }
@@ -142,3 +142,4 @@ fn smoke_loss_decreases() {
         "loss did not decrease: {losses:?}"
     );
 }
+

@@ -1,0 +1,209 @@
+//! `metrics.md`: the report as Markdown tables (means first, then per horizon, cross-frame,
+//! depth, timing, the Pareto table of a sweep, and one row per clip).
+
+use crate::eval::report::{ClipMetrics, Report};
+use crate::eval::sweep::SweepPoint;
+use std::fmt::Write;
+
+/// Text for a missing value.
+const NA: &str = "n/a";
+
+fn opt(v: Option<f64>, digits: usize) -> String {
+    v.map_or(NA.to_string(), |v| format!("{v:.digits$}"))
+}
+
+/// The whole Markdown report.
+pub fn markdown(r: &Report) -> String {
+    let mut s = String::new();
+    let _ = writeln!(s, "# Envision4D evaluation\n");
+    let _ = writeln!(
+        s,
+        "- checkpoint: `{}`\n- data: `{}` (split `{}`), {} clips evaluated, {} skipped\n\
+         - backend: {}; T_c = {}, T_f = {}; clips {}x{}, model input {}x{}\n\
+         - crop (top, bottom, left, right): {}, {}, {}, {}; depth alignment: {}\n\
+         - LPIPS: {}\n",
+        r.checkpoint,
+        r.data,
+        r.split,
+        r.clips_evaluated,
+        r.clips_skipped,
+        r.backend,
+        r.context_frames,
+        r.future_frames,
+        r.image_size[0],
+        r.image_size[1],
+        r.input_size[0],
+        r.input_size[1],
+        r.crop.top,
+        r.crop.bottom,
+        r.crop.left,
+        r.crop.right,
+        r.depth_alignment,
+        if r.lpips.available {
+            "computed".to_string()
+        } else {
+            format!(
+                "not reported ({})",
+                r.lpips.reason.as_deref().unwrap_or("unavailable")
+            )
+        }
+    );
+    if let Some(m) = &r.mean {
+        mean_tables(&mut s, m);
+    } else {
+        let _ = writeln!(s, "No clip was evaluated.\n");
+    }
+    if let Some(points) = &r.sweep {
+        sweep_table(&mut s, points);
+    }
+    clip_table(&mut s, &r.clips);
+    s
+}
+
+fn mean_tables(s: &mut String, m: &ClipMetrics) {
+    let _ = writeln!(s, "## Future frames (mean over clips)\n");
+    let _ = writeln!(
+        s,
+        "| method | PSNR (dB) | SSIM | LPIPS | rot err (deg) | trans err (m) | AUC@30 | time (s/clip) |\n\
+         |---|---|---|---|---|---|---|---|"
+    );
+    for x in &m.methods {
+        let _ = writeln!(
+            s,
+            "| {} | {:.2} | {:.4} | {} | {} | {} | {} | {:.3} |",
+            x.method.label(),
+            x.psnr,
+            x.ssim,
+            opt(x.lpips, 4),
+            opt(x.rot_err_deg, 2),
+            opt(x.trans_err_m, 3),
+            opt(x.camera_auc30.map(|a| a * 100.0), 1),
+            x.time_s
+        );
+    }
+    let _ = writeln!(
+        s,
+        "\nAUC@30 is ×100. Pose errors are relative to frame 0, no scale alignment.\n"
+    );
+    let _ = writeln!(s, "## Per future horizon (mean over clips)\n");
+    let _ = writeln!(
+        s,
+        "| method | horizon | frame | PSNR (dB) | SSIM | LPIPS | rot err (deg) | trans err (m) |\n\
+         |---|---|---|---|---|---|---|---|"
+    );
+    for x in &m.methods {
+        for h in &x.per_horizon {
+            let _ = writeln!(
+                s,
+                "| {} | {} | {} | {:.2} | {:.4} | {} | {} | {} |",
+                x.method.label(),
+                h.horizon,
+                h.frame,
+                h.psnr,
+                h.ssim,
+                opt(h.lpips, 4),
+                opt(h.rot_err_deg, 2),
+                opt(h.trans_err_m, 3)
+            );
+        }
+    }
+    if let Some(c) = &m.context {
+        let _ = writeln!(
+            s,
+            "\n## Context frames rendered from the other frames' Gaussians (cross-frame)\n\n\
+             | frame | PSNR (dB) | SSIM | LPIPS |\n|---|---|---|---|"
+        );
+        for f in &c.per_frame {
+            let _ = writeln!(
+                s,
+                "| {} | {:.2} | {:.4} | {} |",
+                f.frame,
+                f.psnr,
+                f.ssim,
+                opt(f.lpips, 4)
+            );
+        }
+        let _ = writeln!(
+            s,
+            "| mean | {:.2} | {:.4} | {} |",
+            c.psnr,
+            c.ssim,
+            opt(c.lpips, 4)
+        );
+    }
+    match &m.depth_rmse {
+        Some(d) => {
+            let _ = writeln!(
+                s,
+                "\n## Depth\n\nD-RMSE (context frames, {} alignment): {:.3} m\n",
+                d.alignment, d.rmse
+            );
+        }
+        None => {
+            let _ = writeln!(s, "\n## Depth\n\nD-RMSE: {NA} (no ground-truth depth)\n");
+        }
+    }
+    let t = &m.timing;
+    let _ = writeln!(
+        s,
+        "## Timing (mean per clip)\n\nencoder {:.3} s, decoder (future frames) {:.3} s, \
+         decoder (context frames) {} s\n",
+        t.encoder_s,
+        t.decoder_s,
+        opt(t.context_decoder_s, 3)
+    );
+}
+
+fn sweep_table(s: &mut String, points: &[SweepPoint]) {
+    let _ = writeln!(s, "## Quality against run time (sweep; model only)\n");
+    let _ = writeln!(
+        s,
+        "| knob | value | backend | T_f | input | PSNR (dB) | SSIM | LPIPS | rot err (deg) | \
+         encoder (s) | decoder (s) | total (s/clip) | Pareto |\n\
+         |---|---|---|---|---|---|---|---|---|---|---|---|---|"
+    );
+    for p in points {
+        let _ = writeln!(
+            s,
+            "| {:?} | {} | {} | {} | {}x{} | {:.2} | {:.4} | {} | {} | {:.3} | {:.3} | {:.3} | {} |",
+            p.knob,
+            p.value,
+            p.backend,
+            p.horizon,
+            p.input_size[0],
+            p.input_size[1],
+            p.psnr,
+            p.ssim,
+            opt(p.lpips, 4),
+            opt(p.rot_err_deg, 2),
+            p.encoder_s,
+            p.decoder_s,
+            p.time_s,
+            if p.pareto { "yes" } else { "" }
+        );
+    }
+    let _ = writeln!(s);
+}
+
+fn clip_table(s: &mut String, clips: &[ClipMetrics]) {
+    let _ = writeln!(
+        s,
+        "## Per clip (model)\n\n| clip | PSNR (dB) | SSIM | rot err (deg) | trans err (m) | \
+         D-RMSE | encoder (s) | decoder (s) |\n|---|---|---|---|---|---|---|---|"
+    );
+    for c in clips {
+        let Some(m) = c.methods.first() else { continue };
+        let _ = writeln!(
+            s,
+            "| {} | {:.2} | {:.4} | {} | {} | {} | {:.3} | {:.3} |",
+            c.clip,
+            m.psnr,
+            m.ssim,
+            opt(m.rot_err_deg, 2),
+            opt(m.trans_err_m, 3),
+            opt(c.depth_rmse.as_ref().map(|d| d.rmse), 3),
+            c.timing.encoder_s,
+            c.timing.decoder_s
+        );
+    }
+}

@@ -1,0 +1,128 @@
+//! Evaluation of a trained model on held-out clips (issue 7): the paper's future-frame
+//! protocol, the cross-frame context table, D-RMSE, camera AUC@30, future-pose errors per
+//! horizon, three baselines on the same clips, timings, and the quality-vs-time sweep.
+//!
+//! - [`protocol`]: [`evaluate_clip`], one clip, every number of the report.
+//! - [`baselines`]: copy-last-frame and constant-velocity pose extrapolation.
+//! - [`pose_error`]: host SE(3) helpers and the per-frame pose error against ground truth.
+//! - [`report`]: the JSON schema (`docs/EVAL.md`) and means over clips; [`markdown`]: the
+//!   Markdown tables.
+//! - [`sweep`]: the knobs that trade quality for time, and the Pareto front.
+//!
+//! Training's periodic validation calls [`evaluate_clip`] (or [`evaluate_dataset`]) with a
+//! model on a plain (non-autodiff) device, so no graph is recorded.
+
+pub mod baselines;
+pub mod markdown;
+pub mod pose_error;
+pub mod protocol;
+pub mod report;
+pub mod sweep;
+
+pub use markdown::markdown;
+pub use protocol::evaluate_clip;
+pub use report::{
+    mean_metrics, ClipMetrics, CrossFrameScore, DepthScore, FrameScore, HorizonScore, Method,
+    MethodScore, Report, Timing,
+};
+pub use sweep::{SweepPoint, SweepSetting};
+
+use crate::batch::HostClip;
+use crate::error::{Result, TrainError};
+use burn::tensor::Device;
+use envision4d_data::ClipDataset;
+use envision4d_losses::{DepthAlignment, EvalCrop, LpipsStatus};
+use envision4d_model::Envision4d;
+use envision4d_splat::RasterConfig;
+
+/// How much of the protocol a call runs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Extent {
+    /// Future frames, cross-frame context frames, depth, and the three baselines.
+    Full,
+    /// Only the model's future frames (a sweep point: the other numbers do not change with
+    /// the knobs, and rendering them would distort the time axis).
+    FutureOnly,
+}
+
+/// Settings of one evaluation.
+#[derive(Debug, Clone)]
+pub struct EvalOptions {
+    /// `T_c`: the first `T_c` frames of a clip are the model's input.
+    pub context_frames: usize,
+    /// Pixels removed from every image (and depth map) before the metrics.
+    pub crop: EvalCrop,
+    /// LPIPS network, or the reason it is not reported.
+    pub lpips: LpipsStatus,
+    /// Rasterizer settings (the culling thresholds are sweep knobs).
+    pub raster: RasterConfig,
+    /// Scale alignment of the predicted depth before D-RMSE (reported next to the number).
+    pub depth_alignment: DepthAlignment,
+    /// Model input size `[H, W]`; `None` = the clip's size. Renders are always at the clip's
+    /// size (intrinsics scaled), so every setting is scored against the same pixels.
+    pub input_size: Option<[usize; 2]>,
+    pub extent: Extent,
+}
+
+impl EvalOptions {
+    /// The paper's protocol: no crop, default rasterizer, median depth alignment, full extent.
+    pub fn new(context_frames: usize, lpips: LpipsStatus) -> Self {
+        EvalOptions {
+            context_frames,
+            crop: EvalCrop::default(),
+            lpips,
+            raster: RasterConfig::default(),
+            depth_alignment: DepthAlignment::Median,
+            input_size: None,
+            extent: Extent::Full,
+        }
+    }
+}
+
+/// `T_f` of a model: the number of learned future seeds.
+pub fn future_frames(model: &Envision4d) -> usize {
+    model.future.extra_token_offset.dims()[1]
+}
+
+/// The device a model's parameters live on (inputs are created there).
+pub fn model_device(model: &Envision4d) -> Device {
+    model.future.extra_token_offset.val().device()
+}
+
+/// Clips evaluated by [`evaluate_dataset`].
+#[derive(Debug, Clone)]
+pub struct EvalRun {
+    pub clips: Vec<ClipMetrics>,
+    /// Clips that could not be decoded (each already warned about by the dataset).
+    pub skipped: usize,
+}
+
+/// Evaluates clips `indices` of `dataset`, calling `on_clip` after each (progress, logs).
+/// A clip that fails to decode is skipped and counted; an evaluation error stops the run and
+/// names the clip.
+pub fn evaluate_dataset(
+    model: &Envision4d,
+    dataset: &ClipDataset,
+    indices: &[usize],
+    opts: &EvalOptions,
+    mut on_clip: impl FnMut(&ClipMetrics),
+) -> Result<EvalRun> {
+    let mut run = EvalRun {
+        clips: Vec::with_capacity(indices.len()),
+        skipped: 0,
+    };
+    for &i in indices {
+        let Some(clip) = dataset.get(i) else {
+            run.skipped += 1;
+            continue;
+        };
+        let id = clip.id.clone();
+        let named = |e: TrainError| TrainError::Batch(format!("clip {id}: {e}"));
+        let host = HostClip::from_clip(&clip).map_err(|e| named(e))?;
+        let mut m = evaluate_clip(model, &host, opts).map_err(|e| named(e))?;
+        m.clip = id.clone();
+        on_clip(&m);
+        run.clips.push(m);
+    }
+    Ok(run)
+}

@@ -1,0 +1,355 @@
+//! One clip through the paper's protocol: the model sees the first `T_c` frames; its
+//! Gaussians, moved to each future time, are rendered at its predicted future cameras and
+//! scored (PSNR/SSIM/LPIPS) against the real future frames. Context frames are rendered only
+//! from the other frames' Gaussians (the cross-frame table). D-RMSE uses the context depth
+//! maps, AUC@30 and the future-pose errors use ground-truth cameras where the clip has them.
+
+use crate::batch::HostClip;
+use crate::error::{Result, TrainError};
+use crate::eval::baselines::{
+    clip_images, constant_intrinsics, constant_velocity_poses, copy_last_images, copy_last_poses,
+};
+use crate::eval::pose_error::{
+    extrinsics_tensor, host_extrinsics, pose_error, relative_to_first, to_extrinsic,
+};
+use crate::eval::report::{
+    mean, mean_opt, ClipMetrics, CrossFrameScore, DepthScore, FrameScore, HorizonScore, Method,
+    MethodScore, Timing,
+};
+use crate::eval::{future_frames, model_device, EvalOptions, Extent};
+use crate::infer::{predict_scene, Scene};
+use crate::step::render_targets;
+use burn::tensor::{Device, Tensor, TensorData};
+use envision4d_data::geom::Mat4;
+use envision4d_data::resize::resize_bilinear;
+use envision4d_data::Image;
+use envision4d_losses::{
+    camera_auc30, depth_rmse, evaluate_images, AlignmentScope, DepthAlignment, HostDepths,
+    HostImages, ImageMetrics,
+};
+use envision4d_model::adapter::{AdaptedGaussians, Exclusion};
+use envision4d_model::Envision4d;
+use std::time::Instant;
+
+/// PSNR of identical images is +inf in the release; it is reported as this many dB so
+/// means stay finite and JSON stays numeric. Real renders never come close.
+pub const PSNR_CAP_DB: f64 = 100.0;
+
+/// Evaluates one clip (`T_c + T_f` frames or more; extra frames are ignored).
+pub fn evaluate_clip(
+    model: &Envision4d,
+    clip: &HostClip,
+    opts: &EvalOptions,
+) -> Result<ClipMetrics> {
+    let tc = opts.context_frames;
+    let tf = future_frames(model);
+    let n = tc + tf;
+    if tc < 2 || clip.frames.len() < n {
+        return Err(TrainError::Batch(format!(
+            "clip has {} frames; evaluation needs T_c + T_f = {tc} + {tf} (T_c >= 2)",
+            clip.frames.len()
+        )));
+    }
+    let size = [clip.height, clip.width];
+    let input = opts.input_size.unwrap_or(size);
+    let device = model_device(model);
+    let context = context_tensor(clip, tc, input, &device);
+
+    let clock = Instant::now();
+    let scene = predict_scene(model, context, 0)?;
+    sync(&device)?;
+    let encoder_s = clock.elapsed().as_secs_f64();
+
+    let extr = scene.pred.backbone.extrinsics.clone();
+    let intr = scale_intrinsics(scene.pred.backbone.intrinsics.clone(), input, size);
+    let future: Vec<usize> = (tc..n).collect();
+    let (rendered, decoder_s) = timed_render(&scene.adapted, &extr, &intr, &future, size, opts)?;
+    let gt_future = clip_images(clip, &future)?;
+    let pred_poses = host_extrinsics(&extr, 0)?;
+    let gt_poses: Option<Vec<Mat4>> =
+        (clip.cameras.len() >= n).then(|| clip.cameras[..n].iter().map(|c| c.0).collect());
+    let scorer = Scorer {
+        gt: &gt_future,
+        gt_poses: gt_poses.as_deref(),
+        context: tc,
+        opts,
+    };
+    let mut methods =
+        vec![scorer.score(Method::Model, &rendered, &pred_poses, encoder_s + decoder_s)?];
+    let (mut context, mut depth, mut context_decoder_s) = (None, None, None);
+    if opts.extent == Extent::Full {
+        let targets: Vec<usize> = (0..tc).collect();
+        let (ctx, secs) = timed_render(&scene.adapted, &extr, &intr, &targets, size, opts)?;
+        context_decoder_s = Some(secs);
+        context = Some(cross_frame(&ctx, &clip_images(clip, &targets)?, opts)?);
+        depth = depth_score(&scene, clip, tc, opts)?;
+        methods.extend(baselines(
+            &scene,
+            clip,
+            &scorer,
+            &pred_poses,
+            &intr,
+            encoder_s,
+        )?);
+    }
+    Ok(ClipMetrics {
+        clip: String::new(),
+        timing: Timing {
+            encoder_s,
+            decoder_s,
+            context_decoder_s,
+        },
+        methods,
+        context,
+        depth_rmse: depth,
+    })
+}
+
+/// The three baselines of [`crate::eval::baselines`], scored like the model.
+fn baselines(
+    scene: &Scene,
+    clip: &HostClip,
+    scorer: &Scorer,
+    pred_poses: &[Mat4],
+    intr: &Tensor<4>,
+    encoder_s: f64,
+) -> Result<Vec<MethodScore>> {
+    let (tc, opts) = (scorer.context, scorer.opts);
+    let tf = pred_poses.len() - tc;
+    let size = [clip.height, clip.width];
+    let future: Vec<usize> = (tc..tc + tf).collect();
+    let device = intr.device();
+
+    let clock = Instant::now();
+    let copy = copy_last_images(clip, tc, tf)?;
+    let copy_s = clock.elapsed().as_secs_f64();
+    let copy_poses = copy_last_poses(pred_poses, tc, tf);
+
+    let still = scene.without_motion();
+    let cv_poses = constant_velocity_poses(pred_poses, tc, tf);
+    let cv_intr = constant_intrinsics(intr, tc, tf);
+    let cv_extr = extrinsics_tensor(&cv_poses, &device);
+    let (cv, cv_s) = timed_render(&still.adapted, &cv_extr, &cv_intr, &future, size, opts)?;
+
+    let own_extr = extrinsics_tensor(pred_poses, &device);
+    let (nm, nm_s) = timed_render(&still.adapted, &own_extr, intr, &future, size, opts)?;
+
+    Ok(vec![
+        scorer.score(Method::CopyLast, &copy, &copy_poses, copy_s)?,
+        scorer.score(Method::StaticCv, &cv, &cv_poses, encoder_s + cv_s)?,
+        scorer.score(Method::NoMotion, &nm, pred_poses, encoder_s + nm_s)?,
+    ])
+}
+
+/// Scores future frames and poses of any method against one clip's ground truth.
+struct Scorer<'a> {
+    gt: &'a HostImages,
+    gt_poses: Option<&'a [Mat4]>,
+    context: usize,
+    opts: &'a EvalOptions,
+}
+
+impl Scorer<'_> {
+    fn score(
+        &self,
+        method: Method,
+        images: &HostImages,
+        poses: &[Mat4],
+        time_s: f64,
+    ) -> Result<MethodScore> {
+        let m = evaluate_images(images, self.gt, self.opts.crop, &self.opts.lpips)?;
+        let tc = self.context;
+        let errors = self
+            .gt_poses
+            .map(|g| (relative_to_first(poses), relative_to_first(g)));
+        let per_horizon: Vec<HorizonScore> = (0..m.psnr.len())
+            .map(|k| {
+                let j = tc + k;
+                let err = errors.as_ref().map(|(p, g)| pose_error(&p[j], &g[j]));
+                HorizonScore {
+                    horizon: k + 1,
+                    frame: j,
+                    psnr: m.psnr[k].min(PSNR_CAP_DB),
+                    ssim: m.ssim[k],
+                    lpips: lpips_at(&m, k),
+                    rot_err_deg: err.map(|e| e.rotation_deg),
+                    trans_err_m: err.map(|e| e.translation_m),
+                }
+            })
+            .collect();
+        let auc = match self.gt_poses {
+            Some(g) => {
+                let p: Vec<_> = poses.iter().map(to_extrinsic).collect();
+                let g: Vec<_> = g.iter().map(to_extrinsic).collect();
+                Some(camera_auc30(&p, &g)?)
+            }
+            None => None,
+        };
+        Ok(MethodScore {
+            method,
+            psnr: mean(per_horizon.iter().map(|h| h.psnr)),
+            ssim: mean(per_horizon.iter().map(|h| h.ssim)),
+            lpips: mean_opt(per_horizon.iter().map(|h| h.lpips)),
+            rot_err_deg: mean_opt(per_horizon.iter().map(|h| h.rot_err_deg)),
+            trans_err_m: mean_opt(per_horizon.iter().map(|h| h.trans_err_m)),
+            camera_auc30: auc,
+            time_s,
+            per_horizon,
+        })
+    }
+}
+
+fn lpips_at(m: &ImageMetrics, k: usize) -> Option<f64> {
+    m.lpips.as_ref().map(|l| l[k])
+}
+
+/// Cross-frame scores of the context renders.
+fn cross_frame(pred: &HostImages, gt: &HostImages, opts: &EvalOptions) -> Result<CrossFrameScore> {
+    let m = evaluate_images(pred, gt, opts.crop, &opts.lpips)?;
+    let per_frame: Vec<FrameScore> = (0..m.psnr.len())
+        .map(|j| FrameScore {
+            frame: j,
+            psnr: m.psnr[j].min(PSNR_CAP_DB),
+            ssim: m.ssim[j],
+            lpips: lpips_at(&m, j),
+        })
+        .collect();
+    Ok(CrossFrameScore {
+        psnr: mean(per_frame.iter().map(|f| f.psnr)),
+        ssim: mean(per_frame.iter().map(|f| f.ssim)),
+        lpips: mean_opt(per_frame.iter().map(|f| f.lpips)),
+        per_frame,
+    })
+}
+
+/// D-RMSE of the predicted context depth against the clip's z-depth (the convention the
+/// depth distillation trains against), at the clip's resolution: a prediction made at a
+/// smaller input size is upsampled nearest-neighbour, so the crop and the ground-truth
+/// pixels are those of the images. `None` without ground truth or without a valid pixel.
+fn depth_score(
+    scene: &Scene,
+    clip: &HostClip,
+    tc: usize,
+    opts: &EvalOptions,
+) -> Result<Option<DepthScore>> {
+    let (h, w) = (clip.height, clip.width);
+    let Some(depth) = scene.pred.depth.clone() else {
+        return Ok(None);
+    };
+    if clip.depths.len() < tc
+        || clip.depths[..tc]
+            .iter()
+            .all(|d| d.iter().all(|&v| v <= 0.0))
+    {
+        return Ok(None);
+    }
+    let [_, _, hi, wi, _] = depth.dims();
+    let pred: Vec<f64> = depth.into_data().iter::<f64>().collect();
+    let mut up = Vec::with_capacity(tc * h * w);
+    for j in 0..tc {
+        let map = &pred[j * hi * wi..(j + 1) * hi * wi];
+        for y in 0..h {
+            let sy = (y * hi / h).min(hi - 1);
+            up.extend((0..w).map(|x| map[sy * wi + (x * wi / w).min(wi - 1)]));
+        }
+    }
+    let gt: Vec<f64> = clip.depths[..tc]
+        .iter()
+        .flat_map(|d| d.iter().map(|&v| v as f64))
+        .collect();
+    let pred = opts
+        .crop
+        .apply_depths(&HostDepths::new("predicted depth", up, [tc, h, w])?)?;
+    let gt = opts
+        .crop
+        .apply_depths(&HostDepths::new("ground-truth depth", gt, [tc, h, w])?)?;
+    if no_valid_pixel(&gt) {
+        return Ok(None);
+    }
+    let r = depth_rmse(&pred, &gt, opts.depth_alignment, AlignmentScope::PerFrame)?;
+    Ok(Some(DepthScore {
+        rmse: r.mean,
+        alignment: alignment_name(opts.depth_alignment).into(),
+        per_frame: r.per_frame,
+    }))
+}
+
+/// The JSON name of a depth alignment.
+pub fn alignment_name(a: DepthAlignment) -> &'static str {
+    match a {
+        DepthAlignment::None => "none",
+        DepthAlignment::Median => "median",
+        DepthAlignment::LeastSquares => "least_squares",
+    }
+}
+
+/// Whether no ground-truth pixel is valid (> 0), e.g. after the crop removed them all.
+fn no_valid_pixel(gt: &HostDepths) -> bool {
+    (0..gt.shape()[0]).all(|i| gt.map(i).iter().all(|&v| v <= 0.0))
+}
+
+/// Renders `targets` and waits for the device; returns host images and seconds.
+fn timed_render(
+    adapted: &AdaptedGaussians,
+    extr: &Tensor<4>,
+    intr: &Tensor<4>,
+    targets: &[usize],
+    size: [usize; 2],
+    opts: &EvalOptions,
+) -> Result<(HostImages, f64)> {
+    let clock = Instant::now();
+    let out = render_targets(
+        adapted,
+        extr,
+        intr,
+        0,
+        targets,
+        Exclusion::SelfExclusive,
+        size,
+        &opts.raster,
+    )?;
+    sync(&out.device())?;
+    let secs = clock.elapsed().as_secs_f64();
+    Ok((HostImages::from_tensor("rendered frames", out)?, secs))
+}
+
+fn sync(device: &Device) -> Result<()> {
+    device
+        .sync()
+        .map_err(|e| TrainError::Model(format!("device sync failed: {e:?}")))
+}
+
+/// Intrinsics predicted for an `input`-sized image, rescaled to render at `output` size
+/// (continuous pixel coordinates scale with the size ratio; the principal point stays
+/// centred).
+pub fn scale_intrinsics(intr: Tensor<4>, input: [usize; 2], output: [usize; 2]) -> Tensor<4> {
+    if input == output {
+        return intr;
+    }
+    let sy = output[0] as f32 / input[0] as f32;
+    let sx = output[1] as f32 / input[1] as f32;
+    let scale = Tensor::<1>::from_floats([sx, sy, 1.0], &intr.device()).reshape([1, 1, 3, 1]);
+    intr * scale
+}
+
+/// The first `tc` frames as a `[1, T_c, 3, H, W]` input, resized (antialiased bilinear, as
+/// the data loader fits frames) when `input` differs from the clip's size.
+fn context_tensor(clip: &HostClip, tc: usize, input: [usize; 2], device: &Device) -> Tensor<5> {
+    let (h, w) = (clip.height, clip.width);
+    let [hi, wi] = input;
+    let mut data = Vec::with_capacity(tc * 3 * hi * wi);
+    for f in &clip.frames[..tc] {
+        if [h, w] == input {
+            data.extend_from_slice(f);
+            continue;
+        }
+        let mut hwc = vec![0.0f32; h * w * 3];
+        for p in 0..h * w {
+            for c in 0..3 {
+                hwc[p * 3 + c] = f[c * h * w + p];
+            }
+        }
+        data.extend(resize_bilinear(&Image::new(w, h, hwc), hi, wi).to_chw());
+    }
+    Tensor::from_data(TensorData::new(data, [1, tc, 3, hi, wi]), device)
+}

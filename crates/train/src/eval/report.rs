@@ -1,0 +1,271 @@
+//! The evaluation report: per-clip metrics, their mean over clips, and the whole report as
+//! JSON. The schema is documented key by key in `docs/EVAL.md` (a test keeps the two equal).
+
+use crate::eval::sweep::SweepPoint;
+use envision4d_splat::RasterConfig;
+use serde::{Deserialize, Serialize};
+
+/// Version of the JSON layout; bump it when a key changes meaning or disappears.
+pub const SCHEMA_VERSION: u32 = 1;
+
+/// What produced a set of future frames.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Method {
+    /// Envision4D: moved Gaussians rendered at its predicted future poses.
+    Model,
+    /// Every future frame is the last context frame.
+    CopyLast,
+    /// Motion disabled, poses extrapolated at constant velocity.
+    StaticCv,
+    /// Motion disabled, the model's own future poses.
+    NoMotion,
+}
+
+impl Method {
+    /// Short label for tables and plot legends.
+    pub fn label(self) -> &'static str {
+        match self {
+            Method::Model => "model",
+            Method::CopyLast => "copy-last",
+            Method::StaticCv => "static+cv",
+            Method::NoMotion => "no-motion",
+        }
+    }
+}
+
+/// One future frame (horizon `k` is frame `T_c − 1 + k`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct HorizonScore {
+    pub horizon: usize,
+    pub frame: usize,
+    pub psnr: f64,
+    pub ssim: f64,
+    pub lpips: Option<f64>,
+    pub rot_err_deg: Option<f64>,
+    pub trans_err_m: Option<f64>,
+}
+
+/// One method's future frames on one clip (or the mean over clips).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct MethodScore {
+    pub method: Method,
+    /// Means over the future frames.
+    pub psnr: f64,
+    pub ssim: f64,
+    pub lpips: Option<f64>,
+    pub rot_err_deg: Option<f64>,
+    pub trans_err_m: Option<f64>,
+    /// Over all `T_c + T_f` cameras; `None` without ground-truth poses.
+    pub camera_auc30: Option<f64>,
+    /// Seconds this method spent on the clip (encoder + its renders).
+    pub time_s: f64,
+    pub per_horizon: Vec<HorizonScore>,
+}
+
+/// One context frame rendered only from the other frames' Gaussians.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct FrameScore {
+    pub frame: usize,
+    pub psnr: f64,
+    pub ssim: f64,
+    pub lpips: Option<f64>,
+}
+
+/// The cross-frame table: context frames rendered self-exclusively.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CrossFrameScore {
+    pub psnr: f64,
+    pub ssim: f64,
+    pub lpips: Option<f64>,
+    pub per_frame: Vec<FrameScore>,
+}
+
+/// D-RMSE of the context depth maps.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct DepthScore {
+    /// Mean over frames with valid ground truth, in the ground truth's unit (metres).
+    pub rmse: f64,
+    /// `none`, `median` or `least_squares`, per frame.
+    pub alignment: String,
+    /// `None` for a frame without a valid ground-truth pixel.
+    pub per_frame: Vec<Option<f64>>,
+}
+
+/// Seconds spent on one clip; the device is synchronised before each clock stops.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Timing {
+    /// Forward pass on the context frames plus adapting the Gaussians.
+    pub encoder_s: f64,
+    /// Rendering the `T_f` future frames.
+    pub decoder_s: f64,
+    /// Rendering the `T_c` context frames (cross-frame table); `None` in sweep points.
+    pub context_decoder_s: Option<f64>,
+}
+
+/// Every number of one clip.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ClipMetrics {
+    /// The dataset's clip id (`"mean"` for the mean over clips).
+    pub clip: String,
+    pub timing: Timing,
+    /// The model first, then the baselines (absent in sweep points).
+    pub methods: Vec<MethodScore>,
+    pub context: Option<CrossFrameScore>,
+    pub depth_rmse: Option<DepthScore>,
+}
+
+impl ClipMetrics {
+    pub fn method(&self, m: Method) -> Option<&MethodScore> {
+        self.methods.iter().find(|s| s.method == m)
+    }
+}
+
+/// Whether LPIPS was computed, and why not.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct LpipsInfo {
+    pub available: bool,
+    pub reason: Option<String>,
+}
+
+/// Border crop in pixels, as `envision4d_losses::EvalCrop`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct CropInfo {
+    pub top: usize,
+    pub bottom: usize,
+    pub left: usize,
+    pub right: usize,
+}
+
+/// The whole `metrics.json`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Report {
+    pub schema_version: u32,
+    pub checkpoint: String,
+    pub data: String,
+    pub split: String,
+    pub backend: String,
+    pub context_frames: usize,
+    pub future_frames: usize,
+    /// Clip (render and metric) size `[H, W]`.
+    pub image_size: [usize; 2],
+    /// Model input size `[H, W]`.
+    pub input_size: [usize; 2],
+    pub crop: CropInfo,
+    pub depth_alignment: String,
+    pub lpips: LpipsInfo,
+    pub raster: RasterConfig,
+    pub clips_evaluated: usize,
+    pub clips_skipped: usize,
+    pub clips: Vec<ClipMetrics>,
+    /// Mean over `clips`; `None` when no clip was evaluated.
+    pub mean: Option<ClipMetrics>,
+    /// Sweep points (`--sweep`), Pareto flags set; `None` without a sweep.
+    pub sweep: Option<Vec<SweepPoint>>,
+}
+
+impl Report {
+    /// Pretty JSON. Non-finite floats cannot occur: PSNR is capped and every other metric
+    /// is finite by construction (inputs are finite-checked).
+    pub fn to_json(&self) -> String {
+        serde_json::to_string_pretty(self).expect("report types serialise")
+    }
+}
+
+/// Mean of the present values; `None` when none is present.
+pub fn mean_opt(values: impl IntoIterator<Item = Option<f64>>) -> Option<f64> {
+    let v: Vec<f64> = values.into_iter().flatten().collect();
+    (!v.is_empty()).then(|| v.iter().sum::<f64>() / v.len() as f64)
+}
+
+/// Mean of values (0 for none; callers only pass non-empty sets).
+pub fn mean(values: impl IntoIterator<Item = f64>) -> f64 {
+    mean_opt(values.into_iter().map(Some)).unwrap_or(0.0)
+}
+
+/// The mean over clips of every number (each optional number over the clips that have it),
+/// as a [`ClipMetrics`] named `"mean"`; `None` for no clips. Methods and per-frame entries
+/// are matched by method and position: clips of one run share `T_c`, `T_f` and methods.
+pub fn mean_metrics(clips: &[ClipMetrics]) -> Option<ClipMetrics> {
+    let first = clips.first()?;
+    let methods = first
+        .methods
+        .iter()
+        .map(|m0| {
+            let all: Vec<&MethodScore> = clips.iter().filter_map(|c| c.method(m0.method)).collect();
+            mean_method(m0.method, &all)
+        })
+        .collect();
+    let contexts: Vec<&CrossFrameScore> = clips.iter().filter_map(|c| c.context.as_ref()).collect();
+    let depths: Vec<&DepthScore> = clips.iter().filter_map(|c| c.depth_rmse.as_ref()).collect();
+    Some(ClipMetrics {
+        clip: "mean".into(),
+        timing: Timing {
+            encoder_s: mean(clips.iter().map(|c| c.timing.encoder_s)),
+            decoder_s: mean(clips.iter().map(|c| c.timing.decoder_s)),
+            context_decoder_s: mean_opt(clips.iter().map(|c| c.timing.context_decoder_s)),
+        },
+        methods,
+        context: mean_context(&contexts),
+        depth_rmse: mean_depth(&depths),
+    })
+}
+
+fn mean_method(method: Method, all: &[&MethodScore]) -> MethodScore {
+    let horizons = all.iter().map(|m| m.per_horizon.len()).min().unwrap_or(0);
+    let per_horizon = (0..horizons)
+        .map(|k| {
+            let at: Vec<&HorizonScore> = all.iter().map(|m| &m.per_horizon[k]).collect();
+            HorizonScore {
+                horizon: at[0].horizon,
+                frame: at[0].frame,
+                psnr: mean(at.iter().map(|h| h.psnr)),
+                ssim: mean(at.iter().map(|h| h.ssim)),
+                lpips: mean_opt(at.iter().map(|h| h.lpips)),
+                rot_err_deg: mean_opt(at.iter().map(|h| h.rot_err_deg)),
+                trans_err_m: mean_opt(at.iter().map(|h| h.trans_err_m)),
+            }
+        })
+        .collect();
+    MethodScore {
+        method,
+        psnr: mean(all.iter().map(|m| m.psnr)),
+        ssim: mean(all.iter().map(|m| m.ssim)),
+        lpips: mean_opt(all.iter().map(|m| m.lpips)),
+        rot_err_deg: mean_opt(all.iter().map(|m| m.rot_err_deg)),
+        trans_err_m: mean_opt(all.iter().map(|m| m.trans_err_m)),
+        camera_auc30: mean_opt(all.iter().map(|m| m.camera_auc30)),
+        time_s: mean(all.iter().map(|m| m.time_s)),
+        per_horizon,
+    }
+}
+
+fn mean_context(all: &[&CrossFrameScore]) -> Option<CrossFrameScore> {
+    let first = all.first()?;
+    let frames = all.iter().map(|c| c.per_frame.len()).min().unwrap_or(0);
+    Some(CrossFrameScore {
+        psnr: mean(all.iter().map(|c| c.psnr)),
+        ssim: mean(all.iter().map(|c| c.ssim)),
+        lpips: mean_opt(all.iter().map(|c| c.lpips)),
+        per_frame: (0..frames)
+            .map(|k| FrameScore {
+                frame: first.per_frame[k].frame,
+                psnr: mean(all.iter().map(|c| c.per_frame[k].psnr)),
+                ssim: mean(all.iter().map(|c| c.per_frame[k].ssim)),
+                lpips: mean_opt(all.iter().map(|c| c.per_frame[k].lpips)),
+            })
+            .collect(),
+    })
+}
+
+fn mean_depth(all: &[&DepthScore]) -> Option<DepthScore> {
+    let first = all.first()?;
+    let frames = all.iter().map(|d| d.per_frame.len()).min().unwrap_or(0);
+    Some(DepthScore {
+        rmse: mean(all.iter().map(|d| d.rmse)),
+        alignment: first.alignment.clone(),
+        per_frame: (0..frames)
+            .map(|k| mean_opt(all.iter().map(|d| d.per_frame[k])))
+            .collect(),
+    })
+}

@@ -1,0 +1,235 @@
+//! A training run: data order, steps, JSONL log, validation, checkpoints, resume and the
+//! NaN guard. Progress display is the caller's ([`Observer`]); everything a run needs to be
+//! continued or audited is on disk under `run.out_dir`.
+
+use crate::batch::{Batch, HostClip};
+use crate::checkpoint::{self, MODEL_FILE};
+use crate::config::{Stage, Teacher, TrainConfig};
+use crate::data::{open_dataset, split};
+use crate::error::{Result, TrainError};
+use crate::log::JsonlLog;
+use crate::step::{StepReport, Trainer};
+use crate::validate::{validate, ValReport};
+use burn::tensor::Device;
+use envision4d_data::split::epoch_order;
+use envision4d_data::{ClipDataset, Split};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+pub const CONFIG_FILE: &str = "config.toml";
+pub const LOG_FILE: &str = "log.jsonl";
+pub const CHECKPOINT_DIR: &str = "checkpoints";
+
+/// How a run is started.
+#[derive(Debug, Clone, Default)]
+pub struct RunOptions {
+    /// A run directory (its newest checkpoint) or one checkpoint directory.
+    pub resume: Option<PathBuf>,
+    /// Stop (with a checkpoint) after this many steps in total, before `optim.iterations`.
+    pub stop_at: Option<u64>,
+}
+
+/// What the caller shows while a run goes on.
+pub trait Observer {
+    fn start(&mut self, _first_step: u64, _total_steps: u64) {}
+    fn step(&mut self, _report: &StepReport, _steps_per_second: f64) {}
+    fn validation(&mut self, _report: &ValReport) {}
+    fn checkpoint(&mut self, _dir: &Path) {}
+    fn note(&mut self, _message: &str) {}
+}
+
+/// An observer that shows nothing (tests, scripts).
+pub struct Quiet;
+impl Observer for Quiet {}
+
+#[derive(Debug, Clone)]
+pub struct RunSummary {
+    /// Steps done in total (the next step to run).
+    pub steps: u64,
+    pub skipped: u64,
+    pub last_checkpoint: PathBuf,
+    /// The final model (safetensors with its config), `out_dir/model.safetensors`.
+    pub model: PathBuf,
+    pub last_validation: Option<ValReport>,
+}
+
+/// The checkpoint directory `--resume` names: `dir` itself, or the newest under
+/// `dir/checkpoints`.
+pub fn resolve_resume(dir: &Path) -> Result<PathBuf> {
+    if dir.join(checkpoint::STATE_FILE).is_file() {
+        return Ok(dir.to_path_buf());
+    }
+    checkpoint::list(&dir.join(CHECKPOINT_DIR))?
+        .pop()
+        .map(|(_, p)| p)
+        .ok_or_else(|| TrainError::Batch(format!("--resume {}: no checkpoint in it", dir.display())))
+}
+
+/// Refuses a resume whose config differs from the run's own `config.toml` in anything but
+/// `optim.iterations` (extending a run) and the `[run]` table.
+fn check_same_config(cfg: &TrainConfig, saved_path: &Path) -> Result<()> {
+    let saved = crate::load(saved_path)?;
+    let norm = |c: &TrainConfig| {
+        let mut c = c.clone();
+        c.optim.iterations = 0;
+        c.run = Default::default();
+        c.to_toml()
+    };
+    let (a, b) = (norm(cfg), norm(&saved));
+    if a != b {
+        let diff: Vec<String> = a
+            .lines()
+            .zip(b.lines())
+            .filter(|(x, y)| x != y)
+            .map(|(x, y)| format!("  now `{x}`, run had `{y}`"))
+            .take(5)
+            .collect();
+        return Err(TrainError::Batch(format!(
+            "--resume: the config differs from {}:\n{}",
+            saved_path.display(),
+            diff.join("\n")
+        )));
+    }
+    Ok(())
+}
+
+/// Which training clip the `k`-th sample of the run is: a seeded shuffle per epoch, so the
+/// data order is a function of (seed, step) and a resumed run sees the same clips.
+fn sample_index(train: &[usize], seed: u64, k: u64, cache: &mut Option<(u64, Vec<usize>)>) -> usize {
+    let len = train.len() as u64;
+    let epoch = k / len;
+    if cache.as_ref().is_none_or(|(e, _)| *e != epoch) {
+        *cache = Some((epoch, epoch_order(train, seed, epoch)));
+    }
+    cache.as_ref().map_or(train[0], |(_, o)| o[(k % len) as usize])
+}
+
+fn host_clip(ds: &ClipDataset, index: usize) -> Result<HostClip> {
+    let clip = ds
+        .load(index)
+        .map_err(|e| TrainError::Batch(format!("clip {index}: {e}")))?;
+    HostClip::from_clip(&clip)
+}
+
+/// Runs (or resumes) the training `cfg` describes.
+pub fn run(cfg: TrainConfig, device: &Device, opts: RunOptions, obs: &mut dyn Observer) -> Result<RunSummary> {
+    let out = cfg.run.out_dir.clone();
+    let ckpt_root = out.join(CHECKPOINT_DIR);
+    let config_path = out.join(CONFIG_FILE);
+    let resume_dir = match &opts.resume {
+        Some(d) => {
+            let dir = resolve_resume(d)?;
+            let run_dir = dir.parent().and_then(Path::parent).unwrap_or(d);
+            let saved = run_dir.join(CONFIG_FILE);
+            if saved.is_file() {
+                check_same_config(&cfg, &saved)?;
+            }
+            Some(dir)
+        }
+        None => {
+            if let Some((step, _)) = checkpoint::list(&ckpt_root)?.pop() {
+                return Err(TrainError::Batch(format!(
+                    "{} already holds a run (checkpoint at step {step}): pass --resume {} or set another run.out_dir",
+                    out.display(),
+                    out.display()
+                )));
+            }
+            None
+        }
+    };
+    std::fs::create_dir_all(&out).map_err(|source| TrainError::Io { path: out.clone(), source })?;
+    envision4d_data::atomic::write_bytes(&config_path, cfg.to_toml().as_bytes())
+        .map_err(|e| TrainError::Batch(e.to_string()))?;
+
+    let dataset = open_dataset(&cfg.data, &cfg.model, &cfg.data.root)?;
+    let train = split(&dataset, Split::Train, cfg.seed);
+    if train.is_empty() {
+        return Err(TrainError::Batch(format!(
+            "data.root {}: no clip in the training split ({} clips in all)",
+            cfg.data.root.display(),
+            dataset.len()
+        )));
+    }
+    let val_idx: Vec<usize> = split(&dataset, Split::Val, cfg.seed)
+        .into_iter()
+        .take(cfg.run.val_clips)
+        .collect();
+    let val_clips = val_idx
+        .iter()
+        .map(|&i| host_clip(&dataset, i))
+        .collect::<Result<Vec<_>>>()?;
+    if cfg.run.val_every > 0 && val_clips.is_empty() {
+        obs.note("no validation clip in the split: validation skipped");
+    }
+
+    let mut trainer = Trainer::new(cfg.clone(), device)?;
+    if let Some(dir) = &resume_dir {
+        checkpoint::restore(&mut trainer, dir)?;
+        obs.note(&format!("resumed from {} at step {}", dir.display(), trainer.step));
+    }
+    let mut log = JsonlLog::open(&out.join(LOG_FILE), trainer.step)?;
+    let (n, tc) = (cfg.model.num_frames(), cfg.model.context_frames);
+    let depth_frames = match cfg.stage {
+        Stage::Backbone => n,
+        Stage::Envision4d => tc,
+    };
+    let with_gt = cfg.stage == Stage::Backbone || cfg.teacher == Teacher::GroundTruth;
+    let end = opts.stop_at.unwrap_or(u64::MAX).min(cfg.optim.iterations);
+    obs.start(trainer.step, cfg.optim.iterations);
+    let mut order_cache = None;
+    let mut last_ckpt = resume_dir.clone();
+    let mut last_val = None;
+    let t_start = Instant::now();
+    let first = trainer.step;
+    while trainer.step < end {
+        let step = trainer.step;
+        let b = cfg.optim.batch_size as u64;
+        let clips = (0..b)
+            .map(|i| host_clip(&dataset, sample_index(&train, cfg.seed, step * b + i, &mut order_cache)))
+            .collect::<Result<Vec<_>>>()?;
+        let batch = Batch::from_clips(&clips, depth_frames, with_gt, device)?;
+        let t0 = Instant::now();
+        let report = trainer.train_step(&batch)?;
+        let rate = (trainer.step - first) as f64 / t_start.elapsed().as_secs_f64().max(1e-9);
+        obs.step(&report, rate);
+        if !report.outcome.applied() || (step + 1) % cfg.run.log_every == 0 {
+            log.step(&report, t0.elapsed().as_secs_f64(), rate)?;
+        }
+        if trainer.consecutive_nonfinite >= cfg.run.max_nonfinite_steps {
+            let keep = last_ckpt
+                .as_ref()
+                .map_or("none was written".into(), |p| p.display().to_string());
+            return Err(TrainError::Batch(format!(
+                "stopped at step {step}: {} non-finite steps in a row (loss or gradient); the last good checkpoint is {keep}",
+                trainer.consecutive_nonfinite
+            )));
+        }
+        let done = trainer.step;
+        if cfg.run.val_every > 0 && done % cfg.run.val_every == 0 && !val_clips.is_empty() {
+            let v = validate(&trainer.model, cfg.stage, &val_clips, tc, done, &trainer.raster)?;
+            log.validation(&v)?;
+            obs.validation(&v);
+            last_val = Some(v);
+        }
+        if done % cfg.run.checkpoint_every == 0 || done == end {
+            let dir = checkpoint::save(&trainer, &ckpt_root, cfg.run.keep_checkpoints)?;
+            log.checkpoint(done, &dir)?;
+            obs.checkpoint(&dir);
+            last_ckpt = Some(dir);
+        }
+    }
+    let last_checkpoint = match last_ckpt {
+        Some(p) => p,
+        None => checkpoint::save(&trainer, &ckpt_root, cfg.run.keep_checkpoints)?,
+    };
+    let model = out.join(MODEL_FILE);
+    envision4d_model::checkpoint::save_checkpoint(&trainer.model, &cfg.model, &model)
+        .map_err(|e| TrainError::Model(e.to_string()))?;
+    Ok(RunSummary {
+        steps: trainer.step,
+        skipped: trainer.skipped,
+        last_checkpoint,
+        model,
+        last_validation: last_val,
+    })
+}
