@@ -3,8 +3,10 @@
 //! Exit codes: 0 success, 2 bad input (unreadable/invalid file, bad argument), 1 anything else.
 
 mod backend_choice;
+mod eval_cmd;
 mod image_out;
 mod model_config;
+mod plot;
 mod render_cmd;
 mod splat_cmd;
 mod synth_cmd;
@@ -34,6 +36,8 @@ enum Command {
     Render(render_cmd::RenderArgs),
     /// Train Envision4D from a TOML config (`--dry-run` checks and summarises it).
     Train(train_cmd::TrainArgs),
+    /// Score a checkpoint on held-out clips (future frames, poses, depth, baselines, timings).
+    Eval(eval_cmd::EvalArgs),
 }
 
 /// An error caused by the user's input (exit code 2) rather than by the program.
@@ -41,13 +45,26 @@ enum Command {
 #[error("{0}")]
 pub struct InputError(pub String);
 
+/// Burn creates a few tensors on its *default* device (e.g. a restored optimiser state before
+/// it moves to the parameters' device); with wgpu compiled in that default is a GPU, which
+/// would start a Vulkan driver in a CPU run (or fail without one). Default to the CPU backend
+/// unless the user chose otherwise.
+fn default_burn_device() {
+    if std::env::var_os("BURN_DEVICE").is_none() {
+        // SAFETY: called first thing in `main`, before any thread exists.
+        unsafe { std::env::set_var("BURN_DEVICE", "flex") };
+    }
+}
+
 fn main() -> ExitCode {
+    default_burn_device();
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Splat(args) => splat_cmd::run(args),
         Command::Synth(args) => synth_cmd::run(args),
         Command::Render(args) => render_cmd::run(args),
         Command::Train(args) => train_cmd::run(args),
+        Command::Eval(args) => eval_cmd::run(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -30,6 +30,29 @@ pub struct TrainArgs {
     dry_run: bool,
     #[arg(long, value_enum, default_value_t = BackendChoice::Cpu)]
     backend: BackendChoice,
+    /// Data-parallel devices, comma-separated: `wgpu:0,wgpu:1` (discrete GPUs by index),
+    /// `wgpu` (the default GPU), `cpu`. The batch is split evenly; see docs/TRAINING.md.
+    #[arg(long, value_delimiter = ',')]
+    devices: Vec<String>,
+}
+
+/// One `--devices` entry as an autodiff device.
+fn parse_device(spec: &str) -> Result<burn::tensor::Device> {
+    use burn::tensor::{Device, DeviceKind};
+    let d = match spec.trim() {
+        "cpu" => Device::flex(),
+        "wgpu" => Device::wgpu(DeviceKind::DefaultDevice),
+        other => match other.strip_prefix("wgpu:").map(str::parse::<usize>) {
+            Some(Ok(i)) => Device::wgpu(DeviceKind::DiscreteGpu(i)),
+            _ => {
+                return Err(InputError(format!(
+                    "--devices: unknown device {other:?}; use cpu, wgpu or wgpu:N"
+                ))
+                .into())
+            }
+        },
+    };
+    Ok(d.autodiff())
 }
 
 /// Config or data problems are the user's (exit code 2); the rest is the program's.
@@ -45,7 +68,16 @@ fn classify(e: TrainError) -> anyhow::Error {
 
 pub fn run(args: TrainArgs) -> Result<()> {
     let cfg = envision4d_train::load(&args.config).map_err(|e| InputError(e.to_string()))?;
-    let device = args.backend.device().autodiff();
+    let devices = args
+        .devices
+        .iter()
+        .map(|d| parse_device(d))
+        .collect::<Result<Vec<_>>>()?;
+    // With --devices the first one holds the model and the optimiser.
+    let device = devices
+        .first()
+        .cloned()
+        .unwrap_or_else(|| args.backend.device().autodiff());
     if args.dry_run {
         return dry_run(&args, cfg, &device);
     }
@@ -57,6 +89,7 @@ pub fn run(args: TrainArgs) -> Result<()> {
         RunOptions {
             resume: args.resume.clone(),
             stop_at: args.stop_at,
+            devices,
         },
         &mut bar,
     )

@@ -102,7 +102,8 @@ impl FrozenTeacher {
     /// Pseudo-labels from all N ground-truth frames `images [B, N, 3, H, W]`: pose encodings
     /// of every frame (future ones included) and depth of the first `context` frames.
     pub fn targets(&self, images: Tensor<5>, context: usize) -> Result<TeacherTargets> {
-        let out = self.model.vggt(images.detach(), VggtDepth::Run);
+        let device = self.model.devices().into_iter().next().unwrap_or_default();
+        let out = self.model.vggt(images.detach().to_device(&device), VggtDepth::Run);
         let pose_enc = out.pose_enc().detach();
         let (depth, _) = out
             .depth

@@ -27,6 +27,15 @@ pub struct TeacherTargets {
     pub depth: Tensor<5>,
 }
 
+impl TeacherTargets {
+    pub fn to_device(self, device: &Device) -> TeacherTargets {
+        TeacherTargets {
+            pose_enc: self.pose_enc.to_device(device),
+            depth: self.depth.to_device(device),
+        }
+    }
+}
+
 #[derive(Debug, Clone)]
 pub struct Batch {
     /// `[B, N, 3, H, W]` in [0, 1].

@@ -22,6 +22,7 @@ pub mod freeze;
 pub mod infer;
 pub mod load;
 pub mod log;
+pub mod parallel;
 pub mod run;
 pub mod schedule;
 pub mod step;

@@ -27,6 +27,9 @@ pub struct RunOptions {
     pub resume: Option<PathBuf>,
     /// Stop (with a checkpoint) after this many steps in total, before `optim.iterations`.
     pub stop_at: Option<u64>,
+    /// Data-parallel devices (`--devices`); empty or one = the run's device only. The batch
+    /// is split evenly across them.
+    pub devices: Vec<Device>,
 }
 
 /// What the caller shows while a run goes on.
@@ -162,6 +165,14 @@ pub fn run(cfg: TrainConfig, device: &Device, opts: RunOptions, obs: &mut dyn Ob
         obs.note("no validation clip in the split: validation skipped");
     }
 
+    let parallel = opts.devices.len() > 1;
+    if parallel && cfg.optim.batch_size % opts.devices.len() != 0 {
+        return Err(TrainError::invalid(
+            "optim.batch_size",
+            cfg.optim.batch_size,
+            format!("must be a multiple of the {} devices of --devices", opts.devices.len()),
+        ));
+    }
     let mut trainer = Trainer::new(cfg.clone(), device)?;
     if let Some(dir) = &resume_dir {
         checkpoint::restore(&mut trainer, dir)?;
@@ -187,9 +198,19 @@ pub fn run(cfg: TrainConfig, device: &Device, opts: RunOptions, obs: &mut dyn Ob
         let clips = (0..b)
             .map(|i| host_clip(&dataset, sample_index(&train, cfg.seed, step * b + i, &mut order_cache)))
             .collect::<Result<Vec<_>>>()?;
-        let batch = Batch::from_clips(&clips, depth_frames, with_gt, device)?;
         let t0 = Instant::now();
-        let report = trainer.train_step(&batch)?;
+        let report = if parallel {
+            let per = clips.len() / opts.devices.len();
+            let shards = clips
+                .chunks(per)
+                .zip(&opts.devices)
+                .map(|(c, d)| Batch::from_clips(c, depth_frames, with_gt, d))
+                .collect::<Result<Vec<_>>>()?;
+            trainer.train_step_parallel(&shards, &opts.devices)?
+        } else {
+            let batch = Batch::from_clips(&clips, depth_frames, with_gt, device)?;
+            trainer.train_step(&batch)?
+        };
         let rate = (trainer.step - first) as f64 / t_start.elapsed().as_secs_f64().max(1e-9);
         obs.step(&report, rate);
         if !report.outcome.applied() || (step + 1) % cfg.run.log_every == 0 {

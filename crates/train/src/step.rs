@@ -103,7 +103,7 @@ pub fn render_targets(
     Ok(Tensor::cat(frames, 0))
 }
 
-fn scalar(t: &Tensor<1>) -> f64 {
+pub(crate) fn scalar(t: &Tensor<1>) -> f64 {
     t.clone()
         .into_data()
         .iter::<f64>()
@@ -119,7 +119,7 @@ pub struct Trainer {
     pub split: ParamSplit,
     pub raster: RasterConfig,
     rgb_loss: RgbLoss,
-    optim: ModuleOptimizer,
+    pub(crate) optim: ModuleOptimizer,
     teacher: Option<FrozenTeacher>,
     /// The next step to run (0-based).
     pub step: u64,
@@ -180,10 +180,16 @@ impl Trainer {
 
     /// The loss of `batch` at schedule step `step` (forward only), for the configured stage.
     pub fn loss(&self, batch: &Batch, step: u64) -> Result<LossTerms> {
+        self.loss_with(&self.model, batch, step)
+    }
+
+    /// [`Trainer::loss`] of `model` (a fork of the trainer's model on another device for
+    /// data-parallel steps; the batch lives on that device).
+    pub fn loss_with(&self, model: &Envision4d, batch: &Batch, step: u64) -> Result<LossTerms> {
         match self.config.stage {
             Stage::Backbone => {
                 let l = &self.config.loss;
-                let t = backbone_loss(&self.model, batch, l.lambda_cam, l.lambda_depth)?;
+                let t = backbone_loss(model, batch, l.lambda_cam, l.lambda_depth)?;
                 Ok(LossTerms {
                     total: t.total,
                     rgb: Tensor::zeros([1], &batch.images.device()),
@@ -193,12 +199,12 @@ impl Trainer {
                     phase: Phase::Supervised,
                 })
             }
-            Stage::Envision4d => self.envision4d_loss(batch, step),
+            Stage::Envision4d => self.envision4d_loss(model, batch, step),
         }
     }
 
     /// The paper's loss (§3.4): progressive, self-exclusive rendering plus distillation.
-    fn envision4d_loss(&self, batch: &Batch, step: u64) -> Result<LossTerms> {
+    fn envision4d_loss(&self, model: &Envision4d, batch: &Batch, step: u64) -> Result<LossTerms> {
         let m = &self.config.model;
         let (tc, n) = (m.context_frames, m.num_frames());
         let [bsz, frames, _, h, w] = batch.images.dims();
@@ -211,7 +217,7 @@ impl Trainer {
             .images
             .clone()
             .slice([0..bsz, 0..tc, 0..3, 0..h, 0..w]);
-        let Scene { pred, adapted } = predict_scene(&self.model, context, step)?;
+        let Scene { pred, adapted } = predict_scene(model, context, step)?;
         let phase = self.schedule.phase(step);
         let (targets, exclusion): (Vec<usize>, _) = match phase {
             Phase::Warmup => ((0..tc).collect(), Exclusion::IncludeOwn),
@@ -269,7 +275,7 @@ impl Trainer {
                 let teacher = self.teacher.as_ref().ok_or_else(|| {
                     TrainError::Model("teacher = \"backbone\" but no teacher is loaded".into())
                 })?;
-                Some(teacher.targets(batch.images.clone(), tc)?)
+                Some(teacher.targets(batch.images.clone(), tc)?.to_device(&device))
             }
         };
         if let Some(t) = labels {

@@ -1,7 +1,8 @@
 //! `metrics.md`: the report as Markdown tables (means first, then per horizon, cross-frame,
-//! depth, timing, the Pareto table of a sweep, and one row per clip).
+//! depth, timing, the Pareto table of a sweep, and one row per clip); and the plain-text
+//! lines printed while and after evaluating (quality next to the time it cost).
 
-use crate::eval::report::{ClipMetrics, Report};
+use crate::eval::report::{ClipMetrics, Method, Report};
 use crate::eval::sweep::SweepPoint;
 use std::fmt::Write;
 
@@ -165,8 +166,8 @@ fn sweep_table(s: &mut String, points: &[SweepPoint]) {
     for p in points {
         let _ = writeln!(
             s,
-            "| {:?} | {} | {} | {} | {}x{} | {:.2} | {:.4} | {} | {} | {:.3} | {:.3} | {:.3} | {} |",
-            p.knob,
+            "| {} | {} | {} | {} | {}x{} | {:.2} | {:.4} | {} | {} | {:.3} | {:.3} | {:.3} | {} |",
+            p.knob.name(),
             p.value,
             p.backend,
             p.horizon,
@@ -206,4 +207,64 @@ fn clip_table(s: &mut String, clips: &[ClipMetrics]) {
             c.timing.decoder_s
         );
     }
+}
+
+impl ClipMetrics {
+    /// One line: the model's quality on this clip next to the time it cost.
+    pub fn summary_line(&self) -> String {
+        let model = self.method(Method::Model);
+        format!(
+            "{:<24} PSNR {:6.2} dB  SSIM {:.4}  | encoder {:.3} s + decoder {:.3} s",
+            self.clip,
+            model.map_or(f64::NAN, |s| s.psnr),
+            model.map_or(f64::NAN, |s| s.ssim),
+            self.timing.encoder_s,
+            self.timing.decoder_s
+        )
+    }
+}
+
+/// The mean of every method (quality next to seconds per clip), the cross-frame table,
+/// D-RMSE and the timing, as plain text.
+pub fn summary(report: &Report) -> String {
+    let mut s = String::new();
+    let Some(mean) = &report.mean else {
+        return "no clip was evaluated\n".into();
+    };
+    let _ = writeln!(
+        s,
+        "mean over {} clips (future frames, T_f = {}):",
+        report.clips_evaluated, report.future_frames
+    );
+    for m in &mean.methods {
+        let _ = writeln!(
+            s,
+            "  {:<10} PSNR {:6.2} dB  SSIM {:.4}  LPIPS {:>6}  rot {:>6} deg  trans {:>7} m  \
+             AUC@30 {:>5}  | {:.3} s/clip",
+            m.method.label(),
+            m.psnr,
+            m.ssim,
+            opt(m.lpips, 4),
+            opt(m.rot_err_deg, 2),
+            opt(m.trans_err_m, 3),
+            opt(m.camera_auc30.map(|a| a * 100.0), 1),
+            m.time_s
+        );
+    }
+    if let Some(c) = &mean.context {
+        let _ = writeln!(
+            s,
+            "  context frames from the other frames' Gaussians: PSNR {:.2} dB  SSIM {:.4}",
+            c.psnr, c.ssim
+        );
+    }
+    if let Some(d) = &mean.depth_rmse {
+        let _ = writeln!(s, "  D-RMSE ({} alignment): {:.3} m", d.alignment, d.rmse);
+    }
+    let _ = writeln!(
+        s,
+        "  time per clip: encoder {:.3} s, decoder {:.3} s",
+        mean.timing.encoder_s, mean.timing.decoder_s
+    );
+    s
 }

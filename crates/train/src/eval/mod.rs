@@ -19,7 +19,7 @@ pub mod protocol;
 pub mod report;
 pub mod sweep;
 
-pub use markdown::markdown;
+pub use markdown::{markdown, summary};
 pub use protocol::evaluate_clip;
 pub use report::{
     mean_metrics, ClipMetrics, CrossFrameScore, DepthScore, FrameScore, HorizonScore, Method,

@@ -103,6 +103,20 @@ fn patch_round(v: f64, patch: usize) -> usize {
     ((v / patch as f64).round() as usize).max(1) * patch
 }
 
+impl Knob {
+    /// The knob's name as in the JSON (`snake_case`).
+    pub fn name(self) -> &'static str {
+        match self {
+            Knob::Base => "base",
+            Knob::Horizon => "horizon",
+            Knob::InputSize => "input_size",
+            Knob::Backend => "backend",
+            Knob::AlphaMin => "alpha_min",
+            Knob::TransmittanceMin => "transmittance_min",
+        }
+    }
+}
+
 impl SweepSetting {
     /// The value of this point's knob, as a table cell.
     pub fn value(&self) -> String {

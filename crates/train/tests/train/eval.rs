@@ -182,4 +182,8 @@ fn pareto_front_and_means() {
     mark_pareto(&mut points);
     let flags: Vec<bool> = points.iter().map(|p| p.pareto).collect();
     assert_eq!(flags, [true, true, false]);
+    // The Markdown's knob names are the JSON's.
+    for k in [Knob::Base, Knob::InputSize, Knob::TransmittanceMin] {
+        assert_eq!(serde_json::to_value(k).unwrap(), k.name());
+    }
 }

@@ -1,0 +1,396 @@
+//! `envision4d eval`: score a checkpoint on held-out clips (future frames, cross-frame
+//! context, depth, poses, baselines, timings; optionally the quality-vs-time sweep) and write
+//! `metrics.json`, `metrics.md` and PNG plots. See `docs/EVAL.md`.
+
+use crate::backend_choice::BackendChoice;
+use crate::plot;
+use crate::InputError;
+use anyhow::{Context, Result};
+use clap::{Args, ValueEnum};
+use envision4d_data::{atomic, ClipDataset, Split};
+use envision4d_losses::{DepthAlignment, EvalCrop, LpipsNet, LpipsStatus};
+use envision4d_model::checkpoint::{checkpoint_config, load_checkpoint, CheckpointKind};
+use envision4d_model::{Envision4d, ModelConfig};
+use envision4d_train::config::{DataConfig, DataLayout};
+use envision4d_train::eval::report::{CropInfo, LpipsInfo, SCHEMA_VERSION};
+use envision4d_train::eval::sweep::{mark_pareto, plan, summarize, with_horizon, SweepBase};
+use envision4d_train::eval::{
+    evaluate_dataset, future_frames, markdown, mean_metrics, protocol::alignment_name, summary,
+    EvalOptions, Report, SweepPoint,
+};
+use indicatif::{ProgressBar, ProgressStyle};
+use std::path::{Path, PathBuf};
+
+#[derive(Args, Debug)]
+pub struct EvalArgs {
+    /// One of our checkpoints (safetensors; carries its model config).
+    #[arg(long)]
+    checkpoint: PathBuf,
+    /// Training config (TOML): its [model] and [data] (layout, root, seed). Optional when the
+    /// checkpoint carries its model config; the data is then read as the synthetic layout.
+    #[arg(long)]
+    config: Option<PathBuf>,
+    /// Held-out data folder (overrides the config's data.root; required without --config).
+    #[arg(long)]
+    data: Option<PathBuf>,
+    /// Output folder: metrics.json, metrics.md, metrics_vs_horizon.png, metrics_vs_time.png
+    /// (and pareto.png with --sweep).
+    #[arg(long, default_value = "eval")]
+    out: PathBuf,
+    #[arg(long, value_enum, default_value_t = BackendChoice::Cpu)]
+    backend: BackendChoice,
+    /// Clips to score: `auto` = every clip of --data (a held-out folder), or the held-out
+    /// split of the config's data.root when no --data is given.
+    #[arg(long, value_enum, default_value_t = SplitChoice::Auto)]
+    split: SplitChoice,
+    /// Score at most this many clips (dataset order).
+    #[arg(long)]
+    max_clips: Option<usize>,
+    /// LPIPS (VGG) weights in safetensors; without them LPIPS is reported as null.
+    #[arg(long)]
+    lpips_weights: Option<PathBuf>,
+    /// Border crop before every metric: TOP,BOTTOM,LEFT,RIGHT (the release's main config: 6,6,10,6).
+    #[arg(long, value_parser = parse_crop)]
+    crop: Option<EvalCrop>,
+    /// Scale alignment of the predicted depth before D-RMSE.
+    #[arg(long, value_enum, default_value_t = AlignChoice::Median)]
+    depth_align: AlignChoice,
+    /// Also evaluate the knobs that trade quality for time (horizon, input size, backend,
+    /// culling thresholds) and write the Pareto table and plot.
+    #[arg(long)]
+    sweep: bool,
+    /// Backends of the sweep's backend knob (comma-separated; default: only --backend).
+    #[arg(long, value_enum, value_delimiter = ',')]
+    sweep_backends: Vec<BackendChoice>,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+enum SplitChoice {
+    Auto,
+    All,
+    HeldOut,
+    Val,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+enum AlignChoice {
+    None,
+    Median,
+    LeastSquares,
+}
+
+impl AlignChoice {
+    fn alignment(self) -> DepthAlignment {
+        match self {
+            AlignChoice::None => DepthAlignment::None,
+            AlignChoice::Median => DepthAlignment::Median,
+            AlignChoice::LeastSquares => DepthAlignment::LeastSquares,
+        }
+    }
+}
+
+fn parse_crop(s: &str) -> Result<EvalCrop, String> {
+    let v: Vec<usize> = s
+        .split(',')
+        .map(|p| p.trim().parse::<usize>())
+        .collect::<Result<_, _>>()
+        .map_err(|e| format!("--crop {s:?}: {e}; expected TOP,BOTTOM,LEFT,RIGHT"))?;
+    match v[..] {
+        [top, bottom, left, right] => Ok(EvalCrop {
+            top,
+            bottom,
+            left,
+            right,
+        }),
+        _ => Err(format!(
+            "--crop {s:?}: expected 4 numbers TOP,BOTTOM,LEFT,RIGHT"
+        )),
+    }
+}
+
+fn backend_name(b: BackendChoice) -> String {
+    b.to_possible_value()
+        .map_or_else(|| format!("{b:?}"), |v| v.get_name().to_string())
+}
+
+/// What the arguments resolve to.
+struct Setup {
+    model: ModelConfig,
+    data: DataConfig,
+    seed: u64,
+    clips: Selection,
+}
+
+/// Which clips of the dataset are scored.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Selection {
+    /// Every clip (the folder itself is held out).
+    All,
+    /// One split of the seeded hash split (`envision4d_data::split`), as training splits.
+    Split(Split),
+}
+
+fn resolve(args: &EvalArgs) -> Result<Setup> {
+    if !args.checkpoint.is_file() {
+        return Err(InputError(format!(
+            "{}: checkpoint file not found",
+            args.checkpoint.display()
+        ))
+        .into());
+    }
+    let (model, mut data, seed) = match &args.config {
+        Some(path) => {
+            let cfg = envision4d_train::load(path).map_err(|e| InputError(e.to_string()))?;
+            (cfg.model, cfg.data, cfg.seed)
+        }
+        None => {
+            let model = checkpoint_config(&args.checkpoint)
+                .map_err(|e| InputError(e.to_string()))?
+                .ok_or_else(|| {
+                    InputError(format!(
+                        "{} carries no model config: pass --config",
+                        args.checkpoint.display()
+                    ))
+                })?;
+            let root = args.data.clone().ok_or_else(|| {
+                InputError(
+                    "pass --data DIR (held-out clips) or --config (a training config with [data])"
+                        .into(),
+                )
+            })?;
+            (
+                model,
+                DataConfig {
+                    layout: DataLayout::Synth,
+                    root,
+                    stride: 1,
+                },
+                0,
+            )
+        }
+    };
+    if let Some(root) = &args.data {
+        data.root = root.clone();
+    }
+    if !data.root.is_dir() {
+        return Err(InputError(format!("{}: data folder not found", data.root.display())).into());
+    }
+    let clips = match args.split {
+        SplitChoice::Auto if args.data.is_some() => Selection::All,
+        SplitChoice::All => Selection::All,
+        SplitChoice::Auto | SplitChoice::HeldOut => Selection::Split(Split::HeldOut),
+        SplitChoice::Val => Selection::Split(Split::Val),
+    };
+    Ok(Setup {
+        model,
+        data,
+        seed,
+        clips,
+    })
+}
+
+fn load_model(cfg: &ModelConfig, checkpoint: &Path, backend: BackendChoice) -> Result<Envision4d> {
+    let mut model = Envision4d::new(cfg, &backend.device());
+    load_checkpoint(&mut model, checkpoint, CheckpointKind::Full)
+        .map_err(|e| InputError(e.to_string()))?;
+    Ok(model)
+}
+
+fn bar(len: usize) -> ProgressBar {
+    let bar = ProgressBar::new(len as u64);
+    if let Ok(style) =
+        ProgressStyle::with_template("{bar:40} {pos}/{len} clips  {elapsed_precise} (eta {eta})")
+    {
+        bar.set_style(style);
+    }
+    bar
+}
+
+pub fn run(args: EvalArgs) -> Result<()> {
+    let setup = resolve(&args)?;
+    let cfg = &setup.model;
+    let model = load_model(cfg, &args.checkpoint, args.backend)?;
+    let dataset = envision4d_train::data::open_dataset(&setup.data, cfg, &setup.data.root)
+        .map_err(|e| InputError(e.to_string()))?;
+    let mut indices: Vec<usize> = match setup.clips {
+        Selection::All => (0..dataset.len()).collect(),
+        Selection::Split(split) => envision4d_train::data::split(&dataset, split, setup.seed),
+    };
+    if indices.is_empty() {
+        return Err(InputError(format!(
+            "{}: none of its {} clips falls in the {:?} (seed {}); pass --split all to score every clip",
+            setup.data.root.display(),
+            dataset.len(),
+            setup.clips,
+            setup.seed
+        ))
+        .into());
+    }
+    indices.truncate(args.max_clips.unwrap_or(usize::MAX).max(1));
+    let device = args.backend.device();
+    let lpips = LpipsStatus::from_path(args.lpips_weights.as_deref(), LpipsNet::Vgg, &device)
+        .map_err(|e| InputError(e.to_string()))?;
+    if let Some(note) = lpips.notice() {
+        eprintln!("note: {note}");
+    }
+    let lpips_info = LpipsInfo {
+        available: lpips.get().is_some(),
+        reason: match &lpips {
+            LpipsStatus::Available(_) => None,
+            LpipsStatus::Unavailable { reason } => Some(reason.clone()),
+        },
+    };
+    let mut opts = EvalOptions::new(cfg.context_frames, lpips);
+    opts.crop = args.crop.unwrap_or_default();
+    opts.depth_alignment = args.depth_align.alignment();
+    atomic::create_dir(&args.out).map_err(|e| InputError(e.to_string()))?;
+
+    warm_up(&model, &dataset, &indices, &opts, args.backend)?;
+    let progress = bar(indices.len());
+    let run = evaluate_dataset(&model, &dataset, &indices, &opts, |m| {
+        progress.suspend(|| println!("{}", m.summary_line()));
+        progress.inc(1);
+    })?;
+    progress.finish_and_clear();
+    let sweep = if args.sweep {
+        Some(run_sweep(&args, &setup, &model, &dataset, &indices, &opts)?)
+    } else {
+        None
+    };
+    let mean = mean_metrics(&run.clips);
+    let report = Report {
+        schema_version: SCHEMA_VERSION,
+        checkpoint: args.checkpoint.display().to_string(),
+        data: setup.data.root.display().to_string(),
+        split: match setup.clips {
+            Selection::All => "all".into(),
+            Selection::Split(Split::HeldOut) => "held_out".into(),
+            Selection::Split(other) => format!("{other:?}").to_lowercase(),
+        },
+        backend: backend_name(args.backend),
+        context_frames: cfg.context_frames,
+        future_frames: future_frames(&model),
+        image_size: cfg.image_size,
+        input_size: cfg.image_size,
+        crop: CropInfo {
+            top: opts.crop.top,
+            bottom: opts.crop.bottom,
+            left: opts.crop.left,
+            right: opts.crop.right,
+        },
+        depth_alignment: alignment_name(opts.depth_alignment).into(),
+        lpips: lpips_info,
+        raster: opts.raster,
+        clips_evaluated: run.clips.len(),
+        clips_skipped: run.skipped,
+        clips: run.clips,
+        mean,
+        sweep,
+    };
+    write_outputs(&args.out, &report)?;
+    print_summary(&report, &args.out);
+    Ok(())
+}
+
+/// On a JIT backend (wgpu) the first pass compiles kernels; one untimed clip keeps that out
+/// of the reported times. The CPU backend has nothing to compile.
+fn warm_up(
+    model: &Envision4d,
+    dataset: &ClipDataset,
+    indices: &[usize],
+    opts: &EvalOptions,
+    backend: BackendChoice,
+) -> Result<()> {
+    if backend == BackendChoice::Cpu {
+        return Ok(());
+    }
+    evaluate_dataset(model, dataset, &indices[..1], opts, |_| {})?;
+    Ok(())
+}
+
+fn run_sweep(
+    args: &EvalArgs,
+    setup: &Setup,
+    model: &Envision4d,
+    dataset: &ClipDataset,
+    indices: &[usize],
+    opts: &EvalOptions,
+) -> Result<Vec<SweepPoint>> {
+    let cfg = &setup.model;
+    let base = SweepBase {
+        backend: backend_name(args.backend),
+        future_frames: future_frames(model),
+        input_size: cfg.image_size,
+        patch_size: cfg.patch_size,
+        raster: opts.raster,
+    };
+    let names: Vec<String> = args
+        .sweep_backends
+        .iter()
+        .map(|&b| backend_name(b))
+        .collect();
+    let settings = plan(&base, &names);
+    let mut models: Vec<(BackendChoice, Envision4d)> = vec![(args.backend, model.clone())];
+    let progress = bar(settings.len() * indices.len());
+    let mut points = Vec::with_capacity(settings.len());
+    for s in &settings {
+        let choice = std::iter::once(args.backend)
+            .chain(args.sweep_backends.iter().copied())
+            .find(|&b| backend_name(b) == s.backend)
+            .context("sweep backend is one of the requested")?;
+        if !models.iter().any(|(b, _)| *b == choice) {
+            models.push((choice, load_model(cfg, &args.checkpoint, choice)?));
+        }
+        let full = &models
+            .iter()
+            .find(|(b, _)| *b == choice)
+            .context("sweep model loaded")?
+            .1;
+        let m = if s.horizon < base.future_frames {
+            with_horizon(full, s.horizon)?
+        } else {
+            full.clone()
+        };
+        // Every setting has new shapes or settings: warm JIT backends up per setting.
+        warm_up(&m, dataset, indices, &s.options(opts), choice)?;
+        let run = evaluate_dataset(&m, dataset, indices, &s.options(opts), |_| progress.inc(1))?;
+        if let Some(p) = summarize(s, &run.clips) {
+            progress.suspend(|| {
+                println!(
+                    "sweep {:<22} PSNR {:6.2} dB  SSIM {:.4}  | {:.3} s/clip (encoder {:.3} + decoder {:.3})",
+                    p.value,
+                    p.psnr, p.ssim, p.time_s, p.encoder_s, p.decoder_s
+                )
+            });
+            points.push(p);
+        }
+    }
+    progress.finish_and_clear();
+    mark_pareto(&mut points);
+    Ok(points)
+}
+
+fn write_outputs(out: &Path, report: &Report) -> Result<()> {
+    let write = |name: &str, bytes: &[u8]| -> Result<PathBuf> {
+        let path = out.join(name);
+        atomic::write_bytes(&path, bytes).with_context(|| format!("writing {}", path.display()))?;
+        Ok(path)
+    };
+    write("metrics.json", report.to_json().as_bytes())?;
+    write("metrics.md", markdown(report).as_bytes())?;
+    let png = |r: Result<Vec<u8>, String>| r.map_err(anyhow::Error::msg);
+    write(
+        "metrics_vs_horizon.png",
+        &png(plot::horizon_png(report.mean.as_ref()))?,
+    )?;
+    write("metrics_vs_time.png", &png(plot::time_png(report))?)?;
+    if let Some(points) = &report.sweep {
+        write("pareto.png", &png(plot::pareto_png(points))?)?;
+    }
+    Ok(())
+}
+
+fn print_summary(report: &Report, out: &Path) {
+    print!("{}", summary(report));
+    println!("wrote {}/metrics.json, metrics.md and plots", out.display());
+}

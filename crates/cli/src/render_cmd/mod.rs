@@ -1,0 +1,187 @@
+//! `envision4d render`: run Envision4D on context frames and write what it predicts.
+//!
+//! - `--out DIR`: rendered context and future views (PNG + linear EXR), expected depth (EXR +
+//!   colour PNG), dynamic mask and scene flow of the context frames, lane-shifted future views,
+//!   `poses.json` and camera JSONs, optionally the Gaussians of every step as 3DGS PLY, and a
+//!   `manifest.json` listing every file (see docs/RENDER.md).
+//! - `--export-predictions FILE`: raw and adapted predictions as safetensors.
+//!
+//! Modules: [`input`] (model and frames), [`outputs`] (options, steps, manifest), [`views`]
+//! (rasterizing), [`motion_maps`], [`poses`], [`colormap`], [`export`].
+
+mod colormap;
+mod export;
+mod input;
+mod motion_maps;
+mod outputs;
+mod poses;
+mod views;
+
+use crate::backend_choice::BackendChoice;
+use crate::InputError;
+use anyhow::{anyhow, Result};
+use burn::tensor::Tensor;
+use clap::Args;
+use envision4d_model::model::{Heads, Predictions};
+use envision4d_model::pose::pose_encoding_to_extri_intri;
+use envision4d_model::Envision4d;
+use envision4d_train::infer::{clamp_fov, predict_scene, Scene};
+use indicatif::{ProgressBar, ProgressStyle};
+use outputs::{OutDir, Output, Plan};
+use poses::HostCameras;
+use std::path::PathBuf;
+use std::time::Instant;
+
+/// Step handed to the adapter's opacity schedule. The shipped schedule is the identity at every
+/// step, and inference has no training step to report.
+const INFERENCE_STEP: u64 = 0;
+const PROGRESS_TEMPLATE: &str = "{bar:40} {pos}/{len} {msg}  {elapsed_precise}";
+
+#[derive(Args, Debug)]
+pub struct RenderArgs {
+    #[command(flatten)]
+    model: input::ModelArgs,
+    #[command(flatten)]
+    input: input::InputArgs,
+    #[command(flatten)]
+    output: outputs::OutputArgs,
+    /// Write raw and adapted predictions (fixture key names) to this safetensors file.
+    #[arg(long)]
+    export_predictions: Option<PathBuf>,
+    #[arg(long, value_enum, default_value_t = BackendChoice::Cpu)]
+    backend: BackendChoice,
+}
+
+/// What the forward pass produced: everything, or the cameras alone.
+enum Pass {
+    Scene(Scene),
+    PosesOnly(Predictions),
+}
+
+impl Pass {
+    fn pred(&self) -> &Predictions {
+        match self {
+            Pass::Scene(s) => &s.pred,
+            Pass::PosesOnly(p) => p,
+        }
+    }
+
+    fn scene(&self) -> Result<&Scene> {
+        match self {
+            Pass::Scene(s) => Ok(s),
+            Pass::PosesOnly(_) => Err(anyhow!("internal: the Gaussians were not predicted")),
+        }
+    }
+}
+
+/// Reads a tensor back to the host as f32.
+pub(crate) fn host<const D: usize>(t: Tensor<D>) -> Result<Vec<f32>> {
+    t.into_data()
+        .convert::<f32>()
+        .try_into_vec::<f32>()
+        .map_err(|e| anyhow!("reading a tensor back: {e:?}"))
+}
+
+pub fn run(args: RenderArgs) -> Result<()> {
+    let t0 = Instant::now();
+    // Everything that can be checked cheaply is checked before the model is loaded.
+    let (cfg, source) = input::resolve(&args.model)?;
+    let plan = Plan::new(&args.output, &cfg)?;
+    if plan.out.is_none() && args.export_predictions.is_none() {
+        return Err(InputError(
+            "nothing to write: give --out DIR and/or --export-predictions FILE".into(),
+        )
+        .into());
+    }
+    let out_dir = plan.out.as_deref().map(OutDir::create).transpose()?;
+    let device = args.backend.device();
+    let model = input::load_model(&cfg, &source, &device)?;
+    let images = input::read_input(&args.input, &cfg, &device)?;
+    let t_load = t0.elapsed();
+
+    let needs_scene = plan.needs_scene() || args.export_predictions.is_some();
+    let render_steps = views::steps_to_render(&plan).len();
+    let motion_frames = if plan.wants(Output::Motion) {
+        plan.context
+    } else {
+        0
+    };
+    let bar = ProgressBar::new((1 + render_steps + motion_frames) as u64);
+    bar.set_style(ProgressStyle::with_template(PROGRESS_TEMPLATE)?);
+    bar.set_message(if needs_scene {
+        "forward (all heads)"
+    } else {
+        "forward (poses only)"
+    });
+
+    let t1 = Instant::now();
+    let pass = if needs_scene {
+        Pass::Scene(predict_scene(&model, images, INFERENCE_STEP)?)
+    } else {
+        Pass::PosesOnly(poses_only(&model, images))
+    };
+    let t_forward = t1.elapsed();
+    bar.inc(1);
+    let mut summary = vec![format!(
+        "loaded in {:.1} s, forward ({} context + {} future frames at {}x{}) in {:.2} s on {:?}",
+        t_load.as_secs_f64(),
+        cfg.context_frames,
+        cfg.future_frames,
+        cfg.image_size[0],
+        cfg.image_size[1],
+        t_forward.as_secs_f64(),
+        args.backend,
+    )];
+
+    if let Some(path) = &args.export_predictions {
+        export::export_predictions(path, pass.scene()?)?;
+        summary.push(format!("predictions -> {}", path.display()));
+    }
+    if let Some(mut out) = out_dir {
+        let t2 = Instant::now();
+        let cams = HostCameras::from_predictions(pass.pred())?;
+        if plan.renders() {
+            bar.set_message("rendering");
+            let n = views::render_steps(
+                &pass.scene()?.adapted,
+                &cams,
+                &plan,
+                &mut out,
+                &device,
+                || bar.inc(1),
+            )?;
+            summary.push(format!("rendered {n} views"));
+        }
+        if plan.wants(Output::Motion) {
+            bar.set_message("motion maps");
+            motion_maps::write_motion_maps(&pass.scene()?.adapted, &plan, &mut out, || bar.inc(1))?;
+        }
+        if plan.wants_cameras() {
+            poses::write_cameras(&cams, &plan, &mut out)?;
+        }
+        if plan.wants(Output::Poses) {
+            poses::write_poses(&cams, &plan, &mut out)?;
+        }
+        let files = out.len();
+        let manifest = out.finish(&plan, source.path())?;
+        summary.push(format!(
+            "{files} files in {:.1} s -> {}",
+            t2.elapsed().as_secs_f64(),
+            manifest.display()
+        ));
+    }
+    bar.finish_and_clear();
+    println!("{}", summary.join("; "));
+    Ok(())
+}
+
+/// Backbone and camera head only, with the cameras rebuilt from the clamped FoV as
+/// [`predict_scene`] does, so poses.json is the same whichever outputs were asked for.
+fn poses_only(model: &Envision4d, images: Tensor<5>) -> Predictions {
+    let [_, _, _, h, w] = images.dims();
+    let mut pred = model.forward(images, Heads::NONE);
+    let (extr, intr) = pose_encoding_to_extri_intri(clamp_fov(pred.backbone.pose_enc()), h, w);
+    pred.backbone.extrinsics = extr;
+    pred.backbone.intrinsics = intr;
+    pred
+}
