@@ -2,23 +2,23 @@
 //! context, depth, poses, baselines, timings; optionally the quality-vs-time sweep) and write
 //! `metrics.json`, `metrics.md` and PNG plots. See `docs/EVAL.md`.
 
+pub mod shared;
+
 use crate::backend_choice::BackendChoice;
-use crate::plot;
 use crate::InputError;
 use anyhow::{Context, Result};
 use clap::{Args, ValueEnum};
 use envision4d_data::{atomic, ClipDataset, Split};
-use envision4d_losses::{DepthAlignment, EvalCrop, LpipsNet, LpipsStatus};
-use envision4d_model::checkpoint::{checkpoint_config, load_checkpoint, CheckpointKind};
+use envision4d_losses::{DepthAlignment, EvalCrop};
+use envision4d_model::checkpoint::checkpoint_config;
 use envision4d_model::{Envision4d, ModelConfig};
 use envision4d_train::config::{DataConfig, DataLayout};
-use envision4d_train::eval::report::{CropInfo, LpipsInfo, SCHEMA_VERSION};
 use envision4d_train::eval::sweep::{mark_pareto, plan, summarize, with_horizon, SweepBase};
 use envision4d_train::eval::{
-    evaluate_dataset, future_frames, markdown, mean_metrics, protocol::alignment_name, summary,
-    EvalOptions, Report, SweepPoint,
+    evaluate_dataset, future_frames, summary, EvalOptions, Report, SweepPoint,
 };
 use indicatif::{ProgressBar, ProgressStyle};
+use shared::{backend_name, build_report, load_model, lpips_status, warm_up, Provenance};
 use std::path::{Path, PathBuf};
 
 #[derive(Args, Debug)]
@@ -108,11 +108,6 @@ fn parse_crop(s: &str) -> Result<EvalCrop, String> {
     }
 }
 
-fn backend_name(b: BackendChoice) -> String {
-    b.to_possible_value()
-        .map_or_else(|| format!("{b:?}"), |v| v.get_name().to_string())
-}
-
 /// What the arguments resolve to.
 struct Setup {
     model: ModelConfig,
@@ -189,13 +184,6 @@ fn resolve(args: &EvalArgs) -> Result<Setup> {
     })
 }
 
-fn load_model(cfg: &ModelConfig, checkpoint: &Path, backend: BackendChoice) -> Result<Envision4d> {
-    let mut model = Envision4d::new(cfg, &backend.device());
-    load_checkpoint(&mut model, checkpoint, CheckpointKind::Full)
-        .map_err(|e| InputError(e.to_string()))?;
-    Ok(model)
-}
-
 fn bar(len: usize) -> ProgressBar {
     let bar = ProgressBar::new(len as u64);
     if let Ok(style) =
@@ -228,18 +216,7 @@ pub fn run(args: EvalArgs) -> Result<()> {
     }
     indices.truncate(args.max_clips.unwrap_or(usize::MAX).max(1));
     let device = args.backend.device();
-    let lpips = LpipsStatus::from_path(args.lpips_weights.as_deref(), LpipsNet::Vgg, &device)
-        .map_err(|e| InputError(e.to_string()))?;
-    if let Some(note) = lpips.notice() {
-        eprintln!("note: {note}");
-    }
-    let lpips_info = LpipsInfo {
-        available: lpips.get().is_some(),
-        reason: match &lpips {
-            LpipsStatus::Available(_) => None,
-            LpipsStatus::Unavailable { reason } => Some(reason.clone()),
-        },
-    };
+    let lpips = lpips_status(args.lpips_weights.as_deref(), &device)?;
     let mut opts = EvalOptions::new(cfg.context_frames, lpips);
     opts.crop = args.crop.unwrap_or_default();
     opts.depth_alignment = args.depth_align.alignment();
@@ -257,54 +234,19 @@ pub fn run(args: EvalArgs) -> Result<()> {
     } else {
         None
     };
-    let mean = mean_metrics(&run.clips);
-    let report = Report {
-        schema_version: SCHEMA_VERSION,
-        checkpoint: args.checkpoint.display().to_string(),
-        data: setup.data.root.display().to_string(),
+    let from = Provenance {
+        checkpoint: &args.checkpoint,
+        data: &setup.data.root,
         split: match setup.clips {
             Selection::All => "all".into(),
             Selection::Split(Split::HeldOut) => "held_out".into(),
             Selection::Split(other) => format!("{other:?}").to_lowercase(),
         },
-        backend: backend_name(args.backend),
-        context_frames: cfg.context_frames,
-        future_frames: future_frames(&model),
-        image_size: cfg.image_size,
-        input_size: cfg.image_size,
-        crop: CropInfo {
-            top: opts.crop.top,
-            bottom: opts.crop.bottom,
-            left: opts.crop.left,
-            right: opts.crop.right,
-        },
-        depth_alignment: alignment_name(opts.depth_alignment).into(),
-        lpips: lpips_info,
-        raster: opts.raster,
-        clips_evaluated: run.clips.len(),
-        clips_skipped: run.skipped,
-        clips: run.clips,
-        mean,
-        sweep,
+        backend: args.backend,
     };
-    write_outputs(&args.out, &report)?;
+    let report = build_report(from, cfg, &model, &opts, run, sweep);
+    shared::write_outputs(&args.out, &report)?;
     print_summary(&report, &args.out);
-    Ok(())
-}
-
-/// On a JIT backend (wgpu) the first pass compiles kernels; one untimed clip keeps that out
-/// of the reported times. The CPU backend has nothing to compile.
-fn warm_up(
-    model: &Envision4d,
-    dataset: &ClipDataset,
-    indices: &[usize],
-    opts: &EvalOptions,
-    backend: BackendChoice,
-) -> Result<()> {
-    if backend == BackendChoice::Cpu {
-        return Ok(());
-    }
-    evaluate_dataset(model, dataset, &indices[..1], opts, |_| {})?;
     Ok(())
 }
 
@@ -368,26 +310,6 @@ fn run_sweep(
     progress.finish_and_clear();
     mark_pareto(&mut points);
     Ok(points)
-}
-
-fn write_outputs(out: &Path, report: &Report) -> Result<()> {
-    let write = |name: &str, bytes: &[u8]| -> Result<PathBuf> {
-        let path = out.join(name);
-        atomic::write_bytes(&path, bytes).with_context(|| format!("writing {}", path.display()))?;
-        Ok(path)
-    };
-    write("metrics.json", report.to_json().as_bytes())?;
-    write("metrics.md", markdown(report).as_bytes())?;
-    let png = |r: Result<Vec<u8>, String>| r.map_err(anyhow::Error::msg);
-    write(
-        "metrics_vs_horizon.png",
-        &png(plot::horizon_png(report.mean.as_ref()))?,
-    )?;
-    write("metrics_vs_time.png", &png(plot::time_png(report))?)?;
-    if let Some(points) = &report.sweep {
-        write("pareto.png", &png(plot::pareto_png(points))?)?;
-    }
-    Ok(())
 }
 
 fn print_summary(report: &Report, out: &Path) {

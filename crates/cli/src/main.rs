@@ -3,6 +3,7 @@
 //! Exit codes: 0 success, 2 bad input (unreadable/invalid file, bad argument), 1 anything else.
 
 mod backend_choice;
+mod demo_cmd;
 mod eval_cmd;
 mod image_out;
 mod model_config;
@@ -38,6 +39,9 @@ enum Command {
     Train(train_cmd::TrainArgs),
     /// Score a checkpoint on held-out clips (future frames, poses, depth, baselines, timings).
     Eval(eval_cmd::EvalArgs),
+    /// Generate a fresh synthetic clip, predict its future with the shipped model (or
+    /// --checkpoint), score it against the truth and the baselines, and render it.
+    Demo(demo_cmd::DemoArgs),
 }
 
 /// An error caused by the user's input (exit code 2) rather than by the program.
@@ -65,6 +69,7 @@ fn main() -> ExitCode {
         Command::Render(args) => render_cmd::run(args),
         Command::Train(args) => train_cmd::run(args),
         Command::Eval(args) => eval_cmd::run(args),
+        Command::Demo(args) => demo_cmd::run(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

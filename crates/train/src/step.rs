@@ -400,7 +400,10 @@ pub fn identity_pose_init(model: &mut Envision4d) {
 
 pub fn build_model(config: &TrainConfig, device: &Device) -> Result<Envision4d> {
     let mut model = Envision4d::new(&config.model, device);
-    if config.init_checkpoint.is_none() {
+    // Only a from-scratch *rendering* run needs sane first poses; the backbone stage regresses
+    // poses directly and learns them better from the plain init (the shrunk output layer
+    // left its first run predicting one mean pose for every non-first frame).
+    if config.init_checkpoint.is_none() && config.stage == Stage::Envision4d {
         identity_pose_init(&mut model);
     }
     if let Some(path) = &config.init_checkpoint {

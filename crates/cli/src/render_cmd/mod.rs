@@ -20,17 +20,18 @@ mod views;
 use crate::backend_choice::BackendChoice;
 use crate::InputError;
 use anyhow::{anyhow, Result};
-use burn::tensor::Tensor;
+use burn::tensor::{Device, Tensor};
 use clap::Args;
 use envision4d_model::model::{Heads, Predictions};
 use envision4d_model::pose::pose_encoding_to_extri_intri;
 use envision4d_model::Envision4d;
 use envision4d_train::infer::{clamp_fov, predict_scene, Scene};
 use indicatif::{ProgressBar, ProgressStyle};
-use outputs::{OutDir, Output, Plan};
+use outputs::Output;
+pub use outputs::{OutDir, OutputArgs, Plan};
 use poses::HostCameras;
-use std::path::PathBuf;
-use std::time::Instant;
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
 
 /// Step handed to the adapter's opacity schedule. The shipped schedule is the identity at every
 /// step, and inference has no training step to report.
@@ -99,29 +100,16 @@ pub fn run(args: RenderArgs) -> Result<()> {
     let images = input::read_input(&args.input, &cfg, &device)?;
     let t_load = t0.elapsed();
 
-    let needs_scene = plan.needs_scene() || args.export_predictions.is_some();
-    let render_steps = views::steps_to_render(&plan).len();
-    let motion_frames = if plan.wants(Output::Motion) {
-        plan.context
-    } else {
-        0
-    };
-    let bar = ProgressBar::new((1 + render_steps + motion_frames) as u64);
+    let export = args.export_predictions.as_deref();
+    let bar = ProgressBar::new(progress_len(&plan));
     bar.set_style(ProgressStyle::with_template(PROGRESS_TEMPLATE)?);
-    bar.set_message(if needs_scene {
-        "forward (all heads)"
-    } else {
-        "forward (poses only)"
-    });
-
-    let t1 = Instant::now();
-    let pass = if needs_scene {
-        Pass::Scene(predict_scene(&model, images, INFERENCE_STEP)?)
-    } else {
-        Pass::PosesOnly(poses_only(&model, images))
+    let request = Request {
+        plan: &plan,
+        out: out_dir,
+        export,
+        source: source.path(),
     };
-    let t_forward = t1.elapsed();
-    bar.inc(1);
+    let written = predict_and_write(&model, images, request, &device, &bar)?;
     let mut summary = vec![format!(
         "loaded in {:.1} s, forward ({} context + {} future frames at {}x{}) in {:.2} s on {:?}",
         t_load.as_secs_f64(),
@@ -129,15 +117,85 @@ pub fn run(args: RenderArgs) -> Result<()> {
         cfg.future_frames,
         cfg.image_size[0],
         cfg.image_size[1],
-        t_forward.as_secs_f64(),
+        written.forward.as_secs_f64(),
         args.backend,
     )];
+    summary.extend(written.notes);
+    bar.finish_and_clear();
+    println!("{}", summary.join("; "));
+    Ok(())
+}
 
-    if let Some(path) = &args.export_predictions {
+/// What [`predict_and_write`] writes.
+pub struct Request<'a> {
+    pub plan: &'a Plan,
+    /// The `--out` folder (already created), or `None` for predictions only.
+    pub out: Option<OutDir>,
+    /// `--export-predictions FILE`.
+    pub export: Option<&'a Path>,
+    /// Where the parameters came from (recorded in the manifest).
+    pub source: &'a Path,
+}
+
+/// What [`predict_and_write`] did.
+pub struct Written {
+    /// Seconds of the forward pass (all heads, or the cameras alone).
+    pub forward: Duration,
+    /// One phrase per thing written, for the caller's summary line.
+    pub notes: Vec<String>,
+    /// `manifest.json` of the output folder, when there was one.
+    pub manifest: Option<PathBuf>,
+}
+
+/// Progress units of [`predict_and_write`]: the forward pass, each rendered time step and
+/// each context frame's motion maps.
+pub fn progress_len(plan: &Plan) -> u64 {
+    let render_steps = views::steps_to_render(plan).len();
+    let motion_frames = if plan.wants(Output::Motion) {
+        plan.context
+    } else {
+        0
+    };
+    (1 + render_steps + motion_frames) as u64
+}
+
+/// Runs an already loaded model on the context `images` (`[1, T_c, 3, H, W]` on `device`)
+/// and writes what `request` asks for; `bar` advances by [`progress_len`] units. `render`
+/// and `demo` share it, so both write the same files and manifest.
+pub fn predict_and_write(
+    model: &Envision4d,
+    images: Tensor<5>,
+    request: Request,
+    device: &Device,
+    bar: &ProgressBar,
+) -> Result<Written> {
+    let Request {
+        plan,
+        out,
+        export,
+        source,
+    } = request;
+    let needs_scene = plan.needs_scene() || export.is_some();
+    bar.set_message(if needs_scene {
+        "forward (all heads)"
+    } else {
+        "forward (poses only)"
+    });
+    let t1 = Instant::now();
+    let pass = if needs_scene {
+        Pass::Scene(predict_scene(model, images, INFERENCE_STEP)?)
+    } else {
+        Pass::PosesOnly(poses_only(model, images))
+    };
+    let forward = t1.elapsed();
+    bar.inc(1);
+    let mut notes = Vec::new();
+    if let Some(path) = export {
         export::export_predictions(path, pass.scene()?)?;
-        summary.push(format!("predictions -> {}", path.display()));
+        notes.push(format!("predictions -> {}", path.display()));
     }
-    if let Some(mut out) = out_dir {
+    let mut manifest = None;
+    if let Some(mut out) = out {
         let t2 = Instant::now();
         let cams = HostCameras::from_predictions(pass.pred())?;
         if plan.renders() {
@@ -145,34 +203,37 @@ pub fn run(args: RenderArgs) -> Result<()> {
             let n = views::render_steps(
                 &pass.scene()?.adapted,
                 &cams,
-                &plan,
+                plan,
                 &mut out,
-                &device,
+                device,
                 || bar.inc(1),
             )?;
-            summary.push(format!("rendered {n} views"));
+            notes.push(format!("rendered {n} views"));
         }
         if plan.wants(Output::Motion) {
             bar.set_message("motion maps");
-            motion_maps::write_motion_maps(&pass.scene()?.adapted, &plan, &mut out, || bar.inc(1))?;
+            motion_maps::write_motion_maps(&pass.scene()?.adapted, plan, &mut out, || bar.inc(1))?;
         }
         if plan.wants_cameras() {
-            poses::write_cameras(&cams, &plan, &mut out)?;
+            poses::write_cameras(&cams, plan, &mut out)?;
         }
         if plan.wants(Output::Poses) {
-            poses::write_poses(&cams, &plan, &mut out)?;
+            poses::write_poses(&cams, plan, &mut out)?;
         }
         let files = out.len();
-        let manifest = out.finish(&plan, source.path())?;
-        summary.push(format!(
+        let path = out.finish(plan, source)?;
+        notes.push(format!(
             "{files} files in {:.1} s -> {}",
             t2.elapsed().as_secs_f64(),
-            manifest.display()
+            path.display()
         ));
+        manifest = Some(path);
     }
-    bar.finish_and_clear();
-    println!("{}", summary.join("; "));
-    Ok(())
+    Ok(Written {
+        forward,
+        notes,
+        manifest,
+    })
 }
 
 /// Backbone and camera head only, with the cameras rebuilt from the clamped FoV as

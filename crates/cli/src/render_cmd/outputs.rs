@@ -40,6 +40,20 @@ pub struct OutputArgs {
     dynamic_threshold: f64,
 }
 
+impl OutputArgs {
+    /// `--out DIR` and nothing else: the default outputs of every future frame, no lane
+    /// shift, the default dynamic threshold (what `envision4d demo` renders).
+    pub fn defaults_into(out: PathBuf) -> OutputArgs {
+        OutputArgs {
+            out: Some(out),
+            future: None,
+            outputs: Vec::new(),
+            lane_shift: Vec::new(),
+            dynamic_threshold: DEFAULT_DYNAMIC_THRESHOLD,
+        }
+    }
+}
+
 /// One kind of output of `--out`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, ValueEnum)]
 pub enum Output {

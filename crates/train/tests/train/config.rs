@@ -23,9 +23,16 @@ fn shipped_configs_parse_paper_values() {
     assert_eq!(c.model.image_size, [350, 518]);
     assert_eq!(c.model.embed_dim, 1024);
     assert_eq!(c.freeze, FreezeGroup::PAPER.to_vec());
+    let n = envision4d_train::load(&config_path("nuscenes.toml")).unwrap();
+    assert_eq!((n.optim, n.loss.clone(), n.progressive), (c.optim, c.loss, c.progressive));
+    assert_eq!(n.model.image_size, [294, 518]);
     let t = envision4d_train::load(&config_path("synth-tiny.toml")).unwrap();
     assert_eq!(t.model.image_size, [56, 84]);
     assert_eq!(t.model.depth, 4);
+    let b = envision4d_train::load(&config_path("synth-backbone.toml")).unwrap();
+    assert_eq!(b.stage, Stage::Backbone);
+    // Stage 2 must build the very network stage 1 trained.
+    assert_eq!(b.model, t.model);
 }
 
 /// Guards against a typo in a config key being silently ignored.
