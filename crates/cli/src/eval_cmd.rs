@@ -59,6 +59,10 @@ pub struct EvalArgs {
     /// culling thresholds) and write the Pareto table and plot.
     #[arg(long)]
     sweep: bool,
+    /// Predict and score only the first N future frames (1..=T_f): the model keeps its first
+    /// N learned future seeds, so it does less work; the baselines are scored on the same N.
+    #[arg(long)]
+    future: Option<usize>,
     /// Backends of the sweep's backend knob (comma-separated; default: only --backend).
     #[arg(long, value_enum, value_delimiter = ',')]
     sweep_backends: Vec<BackendChoice>,
@@ -196,9 +200,20 @@ fn bar(len: usize) -> ProgressBar {
 
 pub fn run(args: EvalArgs) -> Result<()> {
     let setup = resolve(&args)?;
-    let cfg = &setup.model;
-    let model = load_model(cfg, &args.checkpoint, args.backend)?;
-    let dataset = envision4d_train::data::open_dataset(&setup.data, cfg, &setup.data.root)
+    let model = load_model(&setup.model, &args.checkpoint, args.backend)?;
+    // The dataset keeps the checkpoint's T_c + T_f windows; a shorter horizon scores fewer.
+    let dataset_cfg = setup.model.clone();
+    let (model, horizon_cfg) = match args.future {
+        Some(h) => {
+            let m = with_horizon(&model, h).map_err(|e| InputError(format!("--future: {e}")))?;
+            let mut c = setup.model.clone();
+            c.future_frames = h;
+            (m, c)
+        }
+        None => (model, setup.model.clone()),
+    };
+    let cfg = &horizon_cfg;
+    let dataset = envision4d_train::data::open_dataset(&setup.data, &dataset_cfg, &setup.data.root)
         .map_err(|e| InputError(e.to_string()))?;
     let mut indices: Vec<usize> = match setup.clips {
         Selection::All => (0..dataset.len()).collect(),

@@ -20,6 +20,7 @@ pub mod error;
 pub mod eval;
 pub mod freeze;
 pub mod infer;
+pub mod init;
 pub mod load;
 pub mod log;
 pub mod parallel;

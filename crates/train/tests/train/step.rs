@@ -143,3 +143,21 @@ fn smoke_loss_decreases() {
     );
 }
 
+
+/// Guards the static warm-up: during geometric warm-up no Gaussian is moved, so the motion
+/// head gets no gradient (it once learned to push the other frames' Gaussians out of view,
+/// leaving the first self-exclusive renders empty); after warm-up it does.
+#[test]
+fn warmup_is_static_motion_head_untouched() {
+    let cfg = tiny_config();
+    let device = Device::flex().autodiff();
+    let t = Trainer::new(cfg.clone(), &device).unwrap();
+    let b = batch(2, true, &device);
+    let grads = t.loss(&b, 0).unwrap().total.backward();
+    let warm = grad_abs_sum(&t.model.motion_head, &grads).unwrap_or(0.0);
+    assert_eq!(warm, 0.0, "motion head trained during warm-up");
+    let after = cfg.progressive.warmup_iterations;
+    let grads = t.loss(&b, after).unwrap().total.backward();
+    let prog = grad_abs_sum(&t.model.motion_head, &grads).unwrap_or(0.0);
+    assert!(prog > 0.0, "motion head untrained after warm-up");
+}

@@ -1,0 +1,67 @@
+//! How a training run's model starts: from a checkpoint (VGGT-1B or stage 1), or from
+//! scratch with a camera head that predicts sane first poses.
+
+use crate::config::{Stage, TrainConfig};
+use crate::error::{Result, TrainError};
+use burn::tensor::{Device, Tensor};
+use envision4d_model::checkpoint::CheckpointKind;
+use envision4d_model::Envision4d;
+
+/// Field of view (radians, both axes) a from-scratch camera head starts at (~57°).
+pub const INITIAL_FOV_RAD: f32 = 1.0;
+/// Scale of the camera head's last layer at a from-scratch start: small, so the first poses
+/// are close to the identity but gradients still reach the whole head.
+pub const POSE_OUTPUT_INIT_SCALE: f64 = 1e-3;
+
+/// Starts a freshly initialised camera head at the identity pose with a plausible FoV.
+///
+/// With random weights the head predicts random poses: the Gaussians then land behind or
+/// beside every camera, the renders are blank and no gradient reaches anything (and a ReLU'd
+/// FoV of 0 is an infinite focal length). The head sums its 4 refinement deltas, so the last
+/// layer's bias is a quarter of `[t = 0, q = (0, 0, 0, 1), fov_h, fov_w]` and its weight is
+/// shrunk (as AdaLN-zero-style output layers are).
+pub fn identity_pose_init(model: &mut Envision4d) {
+    use burn::module::Param;
+    use envision4d_model::config::CAMERA_ITERATIONS;
+    let fc2 = &mut model.camera_head.pose_branch.fc2;
+    let device = fc2.weight.device();
+    fc2.weight = Param::from_tensor(
+        fc2.weight
+            .val()
+            .detach()
+            .mul_scalar(POSE_OUTPUT_INIT_SCALE)
+            .detach(),
+    );
+    let k = CAMERA_ITERATIONS as f32;
+    let bias = [
+        0.0,
+        0.0,
+        0.0,
+        0.0,
+        0.0,
+        0.0,
+        1.0 / k,
+        INITIAL_FOV_RAD / k,
+        INITIAL_FOV_RAD / k,
+    ];
+    fc2.bias = Some(Param::from_tensor(Tensor::<1>::from_floats(bias, &device)));
+}
+
+/// The model of a config, from `init_checkpoint` when given.
+pub fn build_model(config: &TrainConfig, device: &Device) -> Result<Envision4d> {
+    let mut model = Envision4d::new(&config.model, device);
+    // Only a from-scratch *rendering* run needs sane first poses; the backbone stage regresses
+    // poses directly and learns them better from the plain init (the shrunk output layer
+    // left its first run predicting one mean pose for every non-first frame).
+    if config.init_checkpoint.is_none() && config.stage == Stage::Envision4d {
+        identity_pose_init(&mut model);
+    }
+    if let Some(path) = &config.init_checkpoint {
+        // VGGT-1B init: the backbone must be present; new modules keep their init. A full
+        // checkpoint of ours also satisfies this.
+        envision4d_model::checkpoint::load_checkpoint(&mut model, path, CheckpointKind::Vggt1bInit)
+            .map_err(|e| TrainError::Model(format!("init_checkpoint {}: {e}", path.display())))?;
+    }
+    Ok(model)
+}
+
