@@ -61,7 +61,8 @@ fn classify(e: TrainError) -> anyhow::Error {
         TrainError::Io { .. }
         | TrainError::Parse { .. }
         | TrainError::Invalid { .. }
-        | TrainError::Batch(_) => InputError(e.to_string()).into(),
+        | TrainError::Batch(_)
+        | TrainError::Input(_) => InputError(e.to_string()).into(),
         other => anyhow::Error::new(other),
     }
 }

@@ -23,11 +23,16 @@ pub struct BackboneTerms {
     pub depth: Tensor<1>,
 }
 
-/// Mean |d − t| over pixels with a valid target (t > 0; the synthetic sky has depth 0).
+/// Mean over the batch of each sample's mean |d − t| over pixels with a valid target (t > 0;
+/// the synthetic sky has depth 0). Per-sample means (rather than one pool over the batch)
+/// make the loss of a batch the mean of its samples' losses, so data-parallel shards add up
+/// to exactly the single-device loss whatever their sky fractions.
 pub fn masked_l1(pred: Tensor<5>, target: Tensor<5>) -> Tensor<1> {
+    let b = pred.dims()[0];
     let mask = target.clone().greater_elem(0.0).float();
-    let count = mask.clone().sum().clamp_min(1.0);
-    ((pred - target).abs() * mask).sum() / count
+    let err = ((pred - target).abs() * mask.clone()).reshape([b as i32, -1]).sum_dim(1);
+    let count = mask.reshape([b as i32, -1]).sum_dim(1).clamp_min(1.0);
+    (err / count).mean().reshape([1])
 }
 
 /// Supervised VGGT loss on all N frames of `batch` (its targets must cover every frame's
@@ -93,7 +98,7 @@ impl FrozenTeacher {
     pub fn load(config: &ModelConfig, path: &Path, device: &burn::tensor::Device) -> Result<Self> {
         let mut model = Envision4d::new(config, device);
         load_checkpoint(&mut model, path, CheckpointKind::Vggt1bInit)
-            .map_err(|e| TrainError::Model(format!("teacher_checkpoint {}: {e}", path.display())))?;
+            .map_err(|e| TrainError::Input(format!("teacher_checkpoint {}: {e}", path.display())))?;
         Ok(FrozenTeacher {
             model: model.no_grad(),
         })

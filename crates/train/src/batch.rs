@@ -128,7 +128,7 @@ impl Batch {
         for c in clips {
             if (c.height, c.width, c.frames.len()) != (h, w, n) {
                 return Err(TrainError::Batch(format!(
-                    "clip sizes differ: {}x{}x{} vs {h}x{w}x{n}",
+                    "clip sizes differ: {} frames of {}x{} vs {n} frames of {h}x{w}",
                     c.frames.len(),
                     c.height,
                     c.width
@@ -139,9 +139,11 @@ impl Batch {
             }
             if with_teacher {
                 if c.cameras.len() != n || c.depths.len() < context {
-                    return Err(TrainError::Batch(
-                        "teacher = \"ground_truth\" needs cameras for every frame and depth for the context frames".into(),
-                    ));
+                    return Err(TrainError::Batch(format!(
+                        "exact labels (stage \"backbone\" or teacher = \"ground_truth\") need cameras for all {n} frames and depth on the {h}x{w} frame grid for {context}; a clip has {} cameras and {} usable depth maps (depth on another grid is not usable)",
+                        c.cameras.len(),
+                        c.depths.len()
+                    )));
                 }
                 poses.extend(pose_encodings(&c.cameras, h, w));
                 for d in &c.depths[..context] {

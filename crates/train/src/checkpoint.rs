@@ -29,6 +29,12 @@ pub struct RunState {
     pub seed: u64,
     /// Parameter ids in module visiting order (Adam's state is keyed by them).
     pub param_ids: Vec<u64>,
+    /// Parameter shapes in the same order: a resume into another architecture with the
+    /// same parameter count must not bind Adam moments to the wrong tensors.
+    pub param_shapes: Vec<Vec<usize>>,
+    /// The run's config as TOML with `optim.iterations` and `[run]` normalised away (what a
+    /// resume must match).
+    pub config: String,
 }
 
 fn io(path: &Path) -> impl FnOnce(std::io::Error) -> TrainError + '_ {
@@ -63,10 +69,11 @@ pub fn list(root: &Path) -> Result<Vec<(u64, PathBuf)>> {
 }
 
 #[derive(Default)]
-struct Ids(Vec<u64>);
+struct Ids(Vec<u64>, Vec<Vec<usize>>);
 impl ModuleVisitor for Ids {
     fn visit_float<const D: usize>(&mut self, p: &Param<Tensor<D>>) {
         self.0.push(p.id.val());
+        self.1.push(p.shape().dims::<D>().to_vec());
     }
 }
 
@@ -75,6 +82,21 @@ pub fn param_ids(model: &Envision4d) -> Vec<u64> {
     let mut v = Ids::default();
     model.visit(&mut v);
     v.0
+}
+
+/// Parameter shapes of `model` in visiting order.
+pub fn param_shapes(model: &Envision4d) -> Vec<Vec<usize>> {
+    let mut v = Ids::default();
+    model.visit(&mut v);
+    v.1
+}
+
+/// The part of a config a resumed run must share with the original.
+pub fn resume_identity(cfg: &crate::TrainConfig) -> String {
+    let mut c = cfg.clone();
+    c.optim.iterations = 0;
+    c.run = Default::default();
+    c.to_toml()
 }
 
 struct SetIds<'a> {
@@ -104,8 +126,10 @@ pub fn restore_param_ids(model: Envision4d, ids: &[u64]) -> Result<Envision4d> {
     Ok(model.map(&mut SetIds { ids, next: 0 }))
 }
 
-/// Writes a checkpoint of `trainer` under `root` and keeps only the newest `keep`.
-pub fn save(trainer: &Trainer, root: &Path, keep: usize) -> Result<PathBuf> {
+/// Writes a checkpoint of `trainer` under `root` and keeps only the newest `keep` (the one
+/// just written always stays; only older steps are pruned). `config_identity` is
+/// [`resume_identity`] of the run's config.
+pub fn save(trainer: &Trainer, root: &Path, keep: usize, config_identity: &str) -> Result<PathBuf> {
     std::fs::create_dir_all(root).map_err(io(root))?;
     let final_dir = step_dir(root, trainer.step);
     let tmp = root.join(format!(".tmp-{DIR_PREFIX}{:08}-{}", trainer.step, std::process::id()));
@@ -127,6 +151,8 @@ pub fn save(trainer: &Trainer, root: &Path, keep: usize) -> Result<PathBuf> {
             consecutive_nonfinite: trainer.consecutive_nonfinite,
             seed: trainer.config.seed,
             param_ids: param_ids(&trainer.model),
+            param_shapes: param_shapes(&trainer.model),
+            config: config_identity.to_string(),
         };
         let json = serde_json::to_string_pretty(&state)
             .map_err(|e| TrainError::Model(e.to_string()))?;
@@ -138,14 +164,23 @@ pub fn save(trainer: &Trainer, root: &Path, keep: usize) -> Result<PathBuf> {
         return Err(e);
     }
     if final_dir.exists() {
-        std::fs::remove_dir_all(&final_dir).map_err(io(&final_dir))?;
+        // A same-step directory from an abandoned timeline: moved aside before the new one
+        // takes its name, removed only once the new one is in place.
+        let aside = root.join(format!(".replaced-{DIR_PREFIX}{:08}-{}", trainer.step, std::process::id()));
+        std::fs::rename(&final_dir, &aside).map_err(io(&final_dir))?;
+        std::fs::rename(&tmp, &final_dir).map_err(io(&final_dir))?;
+        let _ = std::fs::remove_dir_all(&aside);
+    } else {
+        std::fs::rename(&tmp, &final_dir).map_err(io(&final_dir))?;
     }
-    std::fs::rename(&tmp, &final_dir).map_err(io(&final_dir))?;
-    let all = list(root)?;
-    if all.len() > keep.max(1) {
-        for (_, old) in &all[..all.len() - keep.max(1)] {
-            std::fs::remove_dir_all(old).map_err(io(old))?;
-        }
+    let older: Vec<PathBuf> = list(root)?
+        .into_iter()
+        .filter(|(s, _)| *s < trainer.step)
+        .map(|(_, p)| p)
+        .collect();
+    let excess = (older.len() + 1).saturating_sub(keep.max(1));
+    for old in older.iter().take(excess) {
+        std::fs::remove_dir_all(old).map_err(io(old))?;
     }
     Ok(final_dir)
 }
@@ -158,10 +193,24 @@ pub fn restore(trainer: &mut Trainer, dir: &Path) -> Result<RunState> {
         path: sp.clone(),
         message: e.to_string(),
     })?;
+    if state.config != resume_identity(&trainer.config) {
+        return Err(TrainError::Input(format!(
+            "--resume {}: the config differs from the run's:\n{}",
+            dir.display(),
+            config_diff(&resume_identity(&trainer.config), &state.config)
+        )));
+    }
     let mp = dir.join(MODEL_FILE);
     let mut model = trainer.model.clone();
     load_checkpoint(&mut model, &mp, CheckpointKind::Full)
         .map_err(|e| TrainError::Model(format!("{}: {e}", mp.display())))?;
+    let shapes = param_shapes(&model);
+    if shapes != state.param_shapes {
+        return Err(TrainError::Input(format!(
+            "--resume {}: the checkpoint's parameter shapes differ from this model's (another architecture)",
+            dir.display()
+        )));
+    }
     trainer.model = restore_param_ids(model, &state.param_ids)?;
     trainer.refresh_split();
     let op = dir.join(OPTIMIZER_FILE);
@@ -172,4 +221,56 @@ pub fn restore(trainer: &mut Trainer, dir: &Path) -> Result<RunState> {
     trainer.skipped = state.skipped;
     trainer.consecutive_nonfinite = state.consecutive_nonfinite;
     Ok(state)
+}
+
+fn flatten(prefix: &str, v: &toml::Value, out: &mut Vec<(String, String)>) {
+    match v {
+        toml::Value::Table(t) => {
+            for (k, v) in t {
+                let key = if prefix.is_empty() { k.clone() } else { format!("{prefix}.{k}") };
+                flatten(&key, v, out);
+            }
+        }
+        other => out.push((prefix.to_string(), other.to_string())),
+    }
+}
+
+/// The dotted keys whose values differ between two config TOMLs (`now` vs `was`).
+pub fn config_diff(now: &str, was: &str) -> String {
+    let keys = |t: &str| {
+        let mut out = vec![];
+        if let Ok(v) = t.parse::<toml::Table>() {
+            flatten("", &toml::Value::Table(v), &mut out);
+        }
+        out.into_iter().collect::<std::collections::BTreeMap<_, _>>()
+    };
+    let (a, b) = (keys(now), keys(was));
+    let mut all: Vec<&String> = a.keys().chain(b.keys()).collect();
+    all.sort();
+    all.dedup();
+    all.into_iter()
+        .filter(|k| a.get(*k) != b.get(*k))
+        .map(|k| {
+            let show = |m: &std::collections::BTreeMap<String, String>| {
+                m.get(k).cloned().unwrap_or_else(|| "(unset)".into())
+            };
+            format!("  {k}: now {}, the run had {}", show(&a), show(&b))
+        })
+        .collect::<Vec<_>>()
+        .join("\n")
+}
+
+/// Moves checkpoints newer than `step` (an abandoned timeline after resuming from an older
+/// one) aside as `.abandoned-step-N`, so a later `--resume RUN_DIR` cannot pick them up.
+pub fn set_aside_newer(root: &Path, step: u64) -> Result<()> {
+    for (s, p) in list(root)? {
+        if s > step {
+            let aside = root.join(format!(".abandoned-{DIR_PREFIX}{s:08}"));
+            if aside.exists() {
+                std::fs::remove_dir_all(&aside).map_err(io(&aside))?;
+            }
+            std::fs::rename(&p, &aside).map_err(io(&p))?;
+        }
+    }
+    Ok(())
 }

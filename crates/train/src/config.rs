@@ -13,6 +13,8 @@ pub const PAPER_ITERATIONS: u64 = 100_000;
 pub const PAPER_WARMUP_ITERATIONS: u64 = 2_500;
 pub const PAPER_S_MAX: u64 = 50_000;
 pub const PAPER_ALPHA0: f64 = 1.0;
+/// Adam's ε in PyTorch (the reference's optimiser).
+pub const PYTORCH_ADAM_EPSILON: f64 = 1e-8;
 /// STORM's grad-norm clip (the paper states none); model.md §3 "STORM's training loop".
 pub const DEFAULT_GRAD_CLIP: f64 = 3.0;
 
@@ -51,6 +53,9 @@ pub enum LrSchedule {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum ClipMode {
+    /// One L2 norm over every trainable gradient (PyTorch's `clip_grad_norm_`, STORM).
+    GlobalNorm,
+    /// Burn's per-parameter-tensor norm clipping.
     Norm,
     Value,
     None,
@@ -66,6 +71,8 @@ pub struct OptimConfig {
     pub iterations: u64,
     pub grad_clip: ClipMode,
     pub grad_clip_threshold: f64,
+    /// Adam's ε (PyTorch's default 1e-8; Burn's own default is 1e-5).
+    pub adam_epsilon: f64,
 }
 
 impl Default for OptimConfig {
@@ -76,8 +83,9 @@ impl Default for OptimConfig {
             schedule: LrSchedule::Cosine,
             batch_size: PAPER_BATCH,
             iterations: PAPER_ITERATIONS,
-            grad_clip: ClipMode::Norm,
+            grad_clip: ClipMode::GlobalNorm,
             grad_clip_threshold: DEFAULT_GRAD_CLIP,
+            adam_epsilon: PYTORCH_ADAM_EPSILON,
         }
     }
 }

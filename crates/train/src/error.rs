@@ -30,6 +30,12 @@ pub enum TrainError {
     NonFinite(&'static str),
     #[error("batch: {0}")]
     Batch(String),
+    /// A file or folder the config or the command line names is missing or unreadable.
+    #[error("{0}")]
+    Input(String),
+    /// The NaN guard stopped the run.
+    #[error("{0}")]
+    Diverged(String),
 }
 
 impl TrainError {

@@ -46,6 +46,12 @@ pub fn predict_scene(model: &Envision4d, context: Tensor<5>, step: u64) -> Resul
         return Err(TrainError::NonFinite("pose encoding"));
     }
     let (extr, intr) = pose_encoding_to_extri_intri(clamp_fov(pose), h, w);
+    // A finite encoding can still decode to NaN cameras (a zero quaternion): the NaN guard's
+    // business, not a render error that ends the run.
+    let finite = |t: &Tensor<4>| t.clone().is_finite().bool_not().any().into_data().iter::<bool>().all(|b| !b);
+    if !finite(&extr) || !finite(&intr) {
+        return Err(TrainError::NonFinite("camera"));
+    }
     pred.backbone.extrinsics = extr;
     pred.backbone.intrinsics = intr;
     let adapted = model

@@ -60,7 +60,7 @@ pub fn build_model(config: &TrainConfig, device: &Device) -> Result<Envision4d> 
         // VGGT-1B init: the backbone must be present; new modules keep their init. A full
         // checkpoint of ours also satisfies this.
         envision4d_model::checkpoint::load_checkpoint(&mut model, path, CheckpointKind::Vggt1bInit)
-            .map_err(|e| TrainError::Model(format!("init_checkpoint {}: {e}", path.display())))?;
+            .map_err(|e| TrainError::Input(format!("init_checkpoint {}: {e}", path.display())))?;
     }
     Ok(model)
 }

@@ -14,6 +14,7 @@
 pub mod backbone;
 pub mod batch;
 pub mod checkpoint;
+pub mod clip;
 pub mod config;
 pub mod data;
 pub mod error;

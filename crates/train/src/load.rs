@@ -177,6 +177,7 @@ pub fn validate(cfg: &TrainConfig) -> Result<()> {
     if o.grad_clip != ClipMode::None {
         positive("optim.grad_clip_threshold", o.grad_clip_threshold)?;
     }
+    positive("optim.adam_epsilon", o.adam_epsilon)?;
     let l = &cfg.loss;
     non_negative("loss.lambda_lpips", l.lambda_lpips)?;
     non_negative("loss.lambda_cam", l.lambda_cam)?;
@@ -224,7 +225,32 @@ pub fn validate(cfg: &TrainConfig) -> Result<()> {
     if cfg.data.stride == 0 {
         return Err(TrainError::invalid("data.stride", 0, "must be >= 1"));
     }
+    if cfg.stage == Stage::Backbone {
+        // Stage 1 trains exactly VGGT's parts; freezing them would silently train nothing
+        // (the paper's default freeze list is stage 2's).
+        let vggt = [
+            FreezeGroup::PatchEmbed,
+            FreezeGroup::FrameBlocks,
+            FreezeGroup::GlobalBlocks,
+            FreezeGroup::Tokens,
+            FreezeGroup::CameraHead,
+            FreezeGroup::DepthHead,
+        ];
+        if let Some(g) = cfg.freeze.iter().find(|g| vggt.contains(g)) {
+            return Err(TrainError::invalid(
+                "freeze",
+                format!("{g:?}"),
+                "stage = \"backbone\" trains the VGGT part; list only groups it does not use (or freeze = [])",
+            ));
+        }
+    }
     let r = &cfg.run;
+    if r.max_nonfinite_steps == 0 {
+        return Err(TrainError::invalid("run.max_nonfinite_steps", 0, "must be >= 1"));
+    }
+    if r.keep_checkpoints == 0 {
+        return Err(TrainError::invalid("run.keep_checkpoints", 0, "must be >= 1"));
+    }
     if r.log_every == 0 || r.checkpoint_every == 0 {
         return Err(TrainError::invalid(
             "run.log_every/run.checkpoint_every",

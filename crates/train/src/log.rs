@@ -75,6 +75,7 @@ impl JsonlLog {
             StepOutcome::Applied => "applied",
             StepOutcome::SkippedNonFiniteLoss => "skipped_nonfinite_loss",
             StepOutcome::SkippedNonFiniteGradient => "skipped_nonfinite_gradient",
+            StepOutcome::SkippedNonFiniteUpdate => "skipped_nonfinite_update",
         };
         self.write(json!({
             "kind": "step",

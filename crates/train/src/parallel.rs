@@ -2,7 +2,8 @@
 //! is forked onto each device (`Module::fork`), each device runs its shard of the batch
 //! forward and backward, the gradients are moved to the first device
 //! (`GradientsParams::to_device`), summed (`GradientsAccumulator`) and applied once. No
-//! communication code of ours: Burn moves the tensors.
+//! communication code of ours: Burn moves the tensors. Shards run one after another from one
+//! host thread (each waits for its loss and gradient checks, the NaN guard's host syncs).
 
 use crate::batch::Batch;
 use crate::error::{Result, TrainError};
@@ -32,16 +33,26 @@ fn values(t: &LossTerms) -> ShardValues {
     }
 }
 
-enum Shard {
-    Done(ShardValues, GradientsParams),
+/// Gradients of one data-parallel step, summed on the first device, with the shards' mean
+/// loss terms; or the reason the step cannot be applied.
+pub enum ParallelGradients {
+    Ready {
+        grads: GradientsParams,
+        report: StepReport,
+    },
     NonFinite(StepOutcome),
 }
 
 impl Trainer {
-    /// One step over `shards` (shard k on `devices[k]`, each with its share of the batch).
-    /// Each shard's loss is divided by the number of shards, so with equal shards the update
-    /// equals a single-device step on the whole batch.
-    pub fn train_step_parallel(&mut self, shards: &[Batch], devices: &[Device]) -> Result<StepReport> {
+    /// Forward and backward of every shard (shard k on `devices[k]`), gradients moved to the
+    /// first device and summed. Each shard's loss is divided by the number of shards, so
+    /// with equal shards the sum is the gradient of the whole batch's loss.
+    pub fn parallel_gradients(
+        &mut self,
+        shards: &[Batch],
+        devices: &[Device],
+        step: u64,
+    ) -> Result<ParallelGradients> {
         if shards.is_empty() || shards.len() != devices.len() {
             return Err(TrainError::Batch(format!(
                 "{} shards for {} devices",
@@ -49,75 +60,81 @@ impl Trainer {
                 devices.len()
             )));
         }
-        let step = self.step;
-        let lr = self.schedule.learning_rate(step);
+        self.prepare_devices(devices)?;
         let main = devices[0].clone();
         let n = shards.len() as f64;
-        let mut outs = Vec::with_capacity(shards.len());
+        let mut acc = GradientsAccumulator::<Envision4d>::new();
+        let mut vals = Vec::with_capacity(shards.len());
         for (batch, device) in shards.iter().zip(devices) {
             let model: Envision4d = self.model.clone().fork(device);
-            let shard = match self.loss_with(&model, batch, step) {
-                Err(TrainError::NonFinite(_)) => Shard::NonFinite(StepOutcome::SkippedNonFiniteLoss),
-                Err(e) => return Err(e),
-                Ok(terms) => {
-                    let v = values(&terms);
-                    if !v.total.is_finite() {
-                        Shard::NonFinite(StepOutcome::SkippedNonFiniteLoss)
-                    } else {
-                        let mut grads = (terms.total / n).backward();
-                        if !grads_finite(&model, &grads) {
-                            Shard::NonFinite(StepOutcome::SkippedNonFiniteGradient)
-                        } else {
-                            let gp = GradientsParams::from_params(&mut grads, &model, &self.split.trainable)
-                                .to_device(&main, &self.model);
-                            Shard::Done(v, gp)
-                        }
-                    }
+            let terms = match self.loss_with(&model, batch, step) {
+                Err(TrainError::NonFinite(_)) => {
+                    return Ok(ParallelGradients::NonFinite(StepOutcome::SkippedNonFiniteLoss))
                 }
+                other => other?,
             };
-            outs.push(shard);
-        }
-        self.step += 1;
-        let phase = self.schedule.phase(step);
-        let mut report = StepReport {
-            step,
-            total: f64::NAN,
-            rgb: f64::NAN,
-            camera: f64::NAN,
-            depth: f64::NAN,
-            psnr: None,
-            lr,
-            phase,
-            outcome: StepOutcome::Applied,
-        };
-        let mut acc = GradientsAccumulator::<Envision4d>::new();
-        let mut vals = vec![];
-        for o in outs {
-            match o {
-                Shard::NonFinite(outcome) => {
-                    // One bad shard skips the whole step: a partial update would weight the
-                    // remaining shards differently from every other step.
-                    self.skipped += 1;
-                    self.consecutive_nonfinite += 1;
-                    report.outcome = outcome;
-                    return Ok(report);
-                }
-                Shard::Done(v, gp) => {
-                    acc.accumulate(&self.model, gp);
-                    vals.push(v);
-                }
+            let v = values(&terms);
+            if !v.total.is_finite() {
+                return Ok(ParallelGradients::NonFinite(StepOutcome::SkippedNonFiniteLoss));
             }
+            let mut grads = (terms.total / n).backward();
+            if !grads_finite(&model, &grads) {
+                return Ok(ParallelGradients::NonFinite(StepOutcome::SkippedNonFiniteGradient));
+            }
+            let gp = GradientsParams::from_params(&mut grads, &model, &self.split.trainable)
+                .to_device(&main, &self.model);
+            acc.accumulate(&self.model, gp);
+            vals.push(v);
         }
         let mean = |f: fn(&ShardValues) -> f64| vals.iter().map(f).sum::<f64>() / n;
-        report.total = mean(|v| v.total);
-        report.rgb = mean(|v| v.rgb);
-        report.camera = mean(|v| v.camera);
-        report.depth = mean(|v| v.depth);
-        if vals.iter().all(|v| v.mse.is_some()) {
-            report.psnr = Some(-10.0 * mean(|v| v.mse.unwrap_or(f64::NAN)).log10());
+        let psnr = vals
+            .iter()
+            .all(|v| v.mse.is_some())
+            .then(|| -10.0 * mean(|v| v.mse.unwrap_or(f64::NAN)).log10());
+        Ok(ParallelGradients::Ready {
+            grads: acc.grads(),
+            report: StepReport {
+                step,
+                total: mean(|v| v.total),
+                rgb: mean(|v| v.rgb),
+                camera: mean(|v| v.camera),
+                depth: mean(|v| v.depth),
+                psnr,
+                lr: self.schedule.learning_rate(step),
+                phase: self.schedule.phase(step),
+                outcome: StepOutcome::Applied,
+            },
+        })
+    }
+
+    /// One data-parallel step: [`Trainer::parallel_gradients`], then one Adam step on the
+    /// first device. One bad shard skips the whole step: a partial update would weight the
+    /// remaining shards differently from every other step.
+    pub fn train_step_parallel(&mut self, shards: &[Batch], devices: &[Device]) -> Result<StepReport> {
+        let step = self.step;
+        let lr = self.schedule.learning_rate(step);
+        let result = self.parallel_gradients(shards, devices, step)?;
+        self.step += 1;
+        match result {
+            ParallelGradients::NonFinite(outcome) => {
+                self.skipped += 1;
+                self.consecutive_nonfinite += 1;
+                Ok(StepReport {
+                    step,
+                    total: f64::NAN,
+                    rgb: f64::NAN,
+                    camera: f64::NAN,
+                    depth: f64::NAN,
+                    psnr: None,
+                    lr,
+                    phase: self.schedule.phase(step),
+                    outcome,
+                })
+            }
+            ParallelGradients::Ready { grads, mut report } => {
+                report.outcome = self.apply(lr, grads);
+                Ok(report)
+            }
         }
-        self.model = self.optim.step(lr, self.model.clone(), acc.grads());
-        self.consecutive_nonfinite = 0;
-        Ok(report)
     }
 }

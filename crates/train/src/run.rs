@@ -68,34 +68,6 @@ pub fn resolve_resume(dir: &Path) -> Result<PathBuf> {
         .ok_or_else(|| TrainError::Batch(format!("--resume {}: no checkpoint in it", dir.display())))
 }
 
-/// Refuses a resume whose config differs from the run's own `config.toml` in anything but
-/// `optim.iterations` (extending a run) and the `[run]` table.
-fn check_same_config(cfg: &TrainConfig, saved_path: &Path) -> Result<()> {
-    let saved = crate::load(saved_path)?;
-    let norm = |c: &TrainConfig| {
-        let mut c = c.clone();
-        c.optim.iterations = 0;
-        c.run = Default::default();
-        c.to_toml()
-    };
-    let (a, b) = (norm(cfg), norm(&saved));
-    if a != b {
-        let diff: Vec<String> = a
-            .lines()
-            .zip(b.lines())
-            .filter(|(x, y)| x != y)
-            .map(|(x, y)| format!("  now `{x}`, run had `{y}`"))
-            .take(5)
-            .collect();
-        return Err(TrainError::Batch(format!(
-            "--resume: the config differs from {}:\n{}",
-            saved_path.display(),
-            diff.join("\n")
-        )));
-    }
-    Ok(())
-}
-
 /// Which training clip the `k`-th sample of the run is: a seeded shuffle per epoch, so the
 /// data order is a function of (seed, step) and a resumed run sees the same clips.
 fn sample_index(train: &[usize], seed: u64, k: u64, cache: &mut Option<(u64, Vec<usize>)>) -> usize {
@@ -120,15 +92,7 @@ pub fn run(cfg: TrainConfig, device: &Device, opts: RunOptions, obs: &mut dyn Ob
     let ckpt_root = out.join(CHECKPOINT_DIR);
     let config_path = out.join(CONFIG_FILE);
     let resume_dir = match &opts.resume {
-        Some(d) => {
-            let dir = resolve_resume(d)?;
-            let run_dir = dir.parent().and_then(Path::parent).unwrap_or(d);
-            let saved = run_dir.join(CONFIG_FILE);
-            if saved.is_file() {
-                check_same_config(&cfg, &saved)?;
-            }
-            Some(dir)
-        }
+        Some(d) => Some(resolve_resume(d)?),
         None => {
             if let Some((step, _)) = checkpoint::list(&ckpt_root)?.pop() {
                 return Err(TrainError::Batch(format!(
@@ -173,10 +137,23 @@ pub fn run(cfg: TrainConfig, device: &Device, opts: RunOptions, obs: &mut dyn Ob
             format!("must be a multiple of the {} devices of --devices", opts.devices.len()),
         ));
     }
-    let mut trainer = Trainer::new(cfg.clone(), device)?;
+    // A resumed run takes its weights from the checkpoint: the init weights are not read
+    // (they may have moved), but the teacher still needs its own.
+    let mut build = cfg.clone();
+    if resume_dir.is_some() {
+        build.teacher_checkpoint = cfg.teacher_checkpoint.clone().or(cfg.init_checkpoint.clone());
+        build.init_checkpoint = None;
+    }
+    let mut trainer = Trainer::new(build, device)?;
+    trainer.config = cfg.clone();
+    let identity = checkpoint::resume_identity(&cfg);
     if let Some(dir) = &resume_dir {
         checkpoint::restore(&mut trainer, dir)?;
+        checkpoint::set_aside_newer(&ckpt_root, trainer.step)?;
         obs.note(&format!("resumed from {} at step {}", dir.display(), trainer.step));
+    }
+    if opts.devices.len() > 1 {
+        trainer.prepare_devices(&opts.devices)?;
     }
     let mut log = JsonlLog::open(&out.join(LOG_FILE), trainer.step)?;
     let (n, tc) = (cfg.model.num_frames(), cfg.model.context_frames);
@@ -220,28 +197,36 @@ pub fn run(cfg: TrainConfig, device: &Device, opts: RunOptions, obs: &mut dyn Ob
             let keep = last_ckpt
                 .as_ref()
                 .map_or("none was written".into(), |p| p.display().to_string());
-            return Err(TrainError::Batch(format!(
-                "stopped at step {step}: {} non-finite steps in a row (loss or gradient); the last good checkpoint is {keep}",
+            return Err(TrainError::Diverged(format!(
+                "stopped at step {step}: {} non-finite steps in a row (loss, gradient or update); the last good checkpoint is {keep}",
                 trainer.consecutive_nonfinite
             )));
         }
         let done = trainer.step;
-        if cfg.run.val_every > 0 && done % cfg.run.val_every == 0 && !val_clips.is_empty() {
-            let v = validate(&trainer.model, cfg.stage, &val_clips, tc, done, &trainer.raster)?;
-            log.validation(&v)?;
-            obs.validation(&v);
-            last_val = Some(v);
-        }
-        if done % cfg.run.checkpoint_every == 0 || done == end {
-            let dir = checkpoint::save(&trainer, &ckpt_root, cfg.run.keep_checkpoints)?;
+        // A checkpoint only after an applied step: the weights are then finite by the
+        // rollback in `Trainer::apply`, and a skipped streak never displaces a good one.
+        if (done % cfg.run.checkpoint_every == 0 || done == end) && trainer.consecutive_nonfinite == 0 {
+            let dir = checkpoint::save(&trainer, &ckpt_root, cfg.run.keep_checkpoints, &identity)?;
             log.checkpoint(done, &dir)?;
             obs.checkpoint(&dir);
             last_ckpt = Some(dir);
         }
+        // Validation after the checkpoint, and never fatal: a bad validation clip must not
+        // cost the steps since the last checkpoint.
+        if cfg.run.val_every > 0 && done % cfg.run.val_every == 0 && !val_clips.is_empty() {
+            match validate(&trainer.model, cfg.stage, &val_clips, tc, done, &trainer.raster) {
+                Ok(v) => {
+                    log.validation(&v)?;
+                    obs.validation(&v);
+                    last_val = Some(v);
+                }
+                Err(e) => obs.note(&format!("validation at step {done} failed: {e}")),
+            }
+        }
     }
     let last_checkpoint = match last_ckpt {
         Some(p) => p,
-        None => checkpoint::save(&trainer, &ckpt_root, cfg.run.keep_checkpoints)?,
+        None => checkpoint::save(&trainer, &ckpt_root, cfg.run.keep_checkpoints, &identity)?,
     };
     let model = out.join(MODEL_FILE);
     envision4d_model::checkpoint::save_checkpoint(&trainer.model, &cfg.model, &model)

@@ -6,7 +6,8 @@
 use crate::batch::Batch;
 use crate::config::{ClipMode, Stage, Teacher, TrainConfig};
 use crate::error::{Result, TrainError};
-use crate::freeze::{grads_finite, ParamSplit};
+use crate::clip::clip_global_norm;
+use crate::freeze::{detach_frozen, grads_finite, params_finite, ParamSplit};
 use crate::schedule::{Phase, Schedule};
 use burn::grad_clipping::GradientClippingConfig;
 use burn::optim::{AdamConfig, GradientsParams, ModuleOptimizer};
@@ -55,6 +56,8 @@ pub enum StepOutcome {
     SkippedNonFiniteLoss,
     /// A gradient was not finite: no update, counted.
     SkippedNonFiniteGradient,
+    /// The update made a parameter non-finite: rolled back, counted.
+    SkippedNonFiniteUpdate,
 }
 
 impl StepOutcome {
@@ -111,6 +114,32 @@ pub(crate) fn scalar(t: &Tensor<1>) -> f64 {
         .unwrap_or(f64::NAN)
 }
 
+fn make_rgb_loss(config: &TrainConfig, device: &Device) -> Result<RgbLoss> {
+    let path = config.loss.lpips_weights.as_deref();
+    let lpips = LpipsStatus::from_path(path, LpipsNet::Vgg, device).map_err(|e| {
+        TrainError::Input(format!(
+            "loss.lpips_weights {}: {e}",
+            path.map_or("(none)".into(), |p| p.display().to_string())
+        ))
+    })?;
+    Ok(RgbLoss::new(config.loss.lambda_lpips, &lpips)?)
+}
+
+/// Adam (no weight decay: the paper states none, model.md §3) with the configured ε and,
+/// for the per-tensor modes, Burn's clipping; global-norm clipping is applied by the step.
+fn make_optimizer(config: &TrainConfig) -> ModuleOptimizer {
+    let o = &config.optim;
+    let clip = match o.grad_clip {
+        ClipMode::Norm => Some(GradientClippingConfig::Norm(o.grad_clip_threshold as f32)),
+        ClipMode::Value => Some(GradientClippingConfig::Value(o.grad_clip_threshold as f32)),
+        ClipMode::GlobalNorm | ClipMode::None => None,
+    };
+    AdamConfig::new()
+        .with_epsilon(o.adam_epsilon as f32)
+        .with_grad_clipping(clip)
+        .init()
+}
+
 /// A model with its optimiser, schedule and frozen set.
 pub struct Trainer {
     pub model: Envision4d,
@@ -118,7 +147,9 @@ pub struct Trainer {
     pub schedule: Schedule,
     pub split: ParamSplit,
     pub raster: RasterConfig,
-    rgb_loss: RgbLoss,
+    /// The rendering loss per device (LPIPS weights live on one device; data-parallel shards
+    /// score on their own). The first entry is the run's device.
+    rgb_losses: Vec<(Device, RgbLoss)>,
     pub(crate) optim: ModuleOptimizer,
     teacher: Option<FrozenTeacher>,
     /// The next step to run (0-based).
@@ -135,10 +166,9 @@ impl Trainer {
         // Seed the device RNG so the random init (and hence the run) is reproducible.
         device.seed(config.seed);
         let model = build_model(&config, device)?;
-        let lpips =
-            LpipsStatus::from_path(config.loss.lpips_weights.as_deref(), LpipsNet::Vgg, device)?;
-        let rgb_loss = RgbLoss::new(config.loss.lambda_lpips, &lpips)?;
+        let rgb_loss = make_rgb_loss(&config, device)?;
         let split = ParamSplit::new(&model, &config.freeze);
+        let model = detach_frozen(model, &split);
         let teacher = match (config.stage, config.teacher) {
             (Stage::Envision4d, Teacher::Backbone) => {
                 let path = config
@@ -152,24 +182,14 @@ impl Trainer {
             }
             _ => None,
         };
-        let clip = match config.optim.grad_clip {
-            ClipMode::Norm => Some(GradientClippingConfig::Norm(
-                config.optim.grad_clip_threshold as f32,
-            )),
-            ClipMode::Value => Some(GradientClippingConfig::Value(
-                config.optim.grad_clip_threshold as f32,
-            )),
-            ClipMode::None => None,
-        };
-        // The paper states no weight decay (model.md §3).
-        let optim = AdamConfig::new().with_grad_clipping(clip).init();
+        let optim = make_optimizer(&config);
         Ok(Trainer {
             model,
             schedule: Schedule::from_config(&config),
             config,
             split,
             raster: RasterConfig::default(),
-            rgb_loss,
+            rgb_losses: vec![(device.clone(), rgb_loss)],
             optim,
             teacher,
             step: 0,
@@ -264,7 +284,7 @@ impl Trainer {
                     .collect(),
                 0,
             );
-            let terms = self.rgb_loss.per_frame(rendered, gt)?;
+            let terms = self.rgb_loss_on(&device)?.per_frame(rendered, gt)?;
             mse_sum = mse_sum + terms.mse.sum().detach();
             rgb_sum = rgb_sum + (terms.total * wt.clone()).sum();
         }
@@ -359,9 +379,28 @@ impl Trainer {
         }
         // Frozen parameters get no gradient entry, so Adam leaves them untouched.
         let gp = GradientsParams::from_params(&mut grads, &self.model, &self.split.trainable);
-        self.model = self.optim.step(lr, self.model.clone(), gp);
+        let outcome = self.apply(lr, gp);
+        Ok(report(outcome))
+    }
+
+    /// Clips (global norm, when configured) and applies `grads`; an update that leaves any
+    /// parameter non-finite is rolled back (model and Adam state) and counted as skipped, so
+    /// a checkpoint never holds exploded weights.
+    pub(crate) fn apply(&mut self, lr: f64, mut grads: GradientsParams) -> StepOutcome {
+        if self.config.optim.grad_clip == ClipMode::GlobalNorm {
+            clip_global_norm(&self.model, &mut grads, self.config.optim.grad_clip_threshold);
+        }
+        let (model, optim) = (self.model.clone(), self.optim.clone());
+        self.model = self.optim.step(lr, self.model.clone(), grads);
+        if !params_finite(&self.model) {
+            self.model = model;
+            self.optim = optim;
+            self.skipped += 1;
+            self.consecutive_nonfinite += 1;
+            return StepOutcome::SkippedNonFiniteUpdate;
+        }
         self.consecutive_nonfinite = 0;
-        Ok(report(StepOutcome::Applied))
+        StepOutcome::Applied
     }
 }
 
@@ -381,5 +420,26 @@ impl Trainer {
     /// Recomputes the frozen/trainable split (after parameter ids changed).
     pub fn refresh_split(&mut self) {
         self.split = ParamSplit::new(&self.model, &self.config.freeze);
+        self.model = detach_frozen(self.model.clone(), &self.split);
+    }
+
+    /// The rendering loss for tensors on `device`.
+    fn rgb_loss_on(&self, device: &Device) -> Result<&RgbLoss> {
+        self.rgb_losses
+            .iter()
+            .find(|(d, _)| d == device)
+            .map(|(_, l)| l)
+            .ok_or_else(|| TrainError::Model(format!("no rendering loss on {device:?}")))
+    }
+
+    /// Makes sure a rendering loss (with its LPIPS weights) exists on each of `devices`.
+    pub(crate) fn prepare_devices(&mut self, devices: &[Device]) -> Result<()> {
+        for d in devices {
+            if !self.rgb_losses.iter().any(|(x, _)| x == d) {
+                let l = make_rgb_loss(&self.config, d)?;
+                self.rgb_losses.push((d.clone(), l));
+            }
+        }
+        Ok(())
     }
 }
