@@ -5,7 +5,10 @@ use crate::config::{Stage, TrainConfig};
 use crate::error::{Result, TrainError};
 use burn::tensor::{Device, Tensor};
 use envision4d_model::checkpoint::CheckpointKind;
+use envision4d_model::aggregator::Aggregator;
+use envision4d_model::config::{MotionModel, TemporalPlacement};
 use envision4d_model::Envision4d;
+use std::path::Path;
 
 /// Field of view (radians, both axes) a from-scratch camera head starts at (~57°).
 pub const INITIAL_FOV_RAD: f32 = 1.0;
@@ -57,11 +60,38 @@ pub fn build_model(config: &TrainConfig, device: &Device) -> Result<Envision4d> 
         identity_pose_init(&mut model);
     }
     if let Some(path) = &config.init_checkpoint {
-        // VGGT-1B init: the backbone must be present; new modules keep their init. A full
-        // checkpoint of ours also satisfies this.
-        envision4d_model::checkpoint::load_checkpoint(&mut model, path, CheckpointKind::Vggt1bInit)
-            .map_err(|e| TrainError::Input(format!("init_checkpoint {}: {e}", path.display())))?;
+        model = init_from(model, config, path, device)?;
     }
     Ok(model)
 }
 
+
+/// Loads `path` (VGGT-1B or one of our checkpoints; the VGGT part must be present, new
+/// modules keep their init) into the paper variant of the model, then carries it over to
+/// the configured ablation variant: the post-layer placement keeps every weight (same
+/// shapes, other wiring), linear velocity keeps its own fresh motion head (6 output
+/// channels where the checkpoint has the 3 of conditioned motion lifting).
+fn init_from(model: Envision4d, config: &TrainConfig, path: &Path, device: &Device) -> Result<Envision4d> {
+    let mut paper = config.model.clone();
+    paper.motion_model = MotionModel::default();
+    paper.temporal_attention = TemporalPlacement::default();
+    let mut base = Envision4d::new(&paper, device);
+    envision4d_model::checkpoint::load_checkpoint(&mut base, path, CheckpointKind::Vggt1bInit)
+        .map_err(|e| TrainError::Input(format!("init_checkpoint {}: {e}", path.display())))?;
+    if paper == config.model {
+        return Ok(base);
+    }
+    let motion_head = if config.model.motion_model == paper.motion_model {
+        base.motion_head
+    } else {
+        model.motion_head
+    };
+    Ok(Envision4d {
+        aggregator: Aggregator {
+            placement: model.aggregator.placement,
+            ..base.aggregator
+        },
+        motion_head,
+        ..base
+    })
+}

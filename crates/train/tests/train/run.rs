@@ -135,6 +135,23 @@ fn backbone_stage_then_teacher() {
     let ckpt = tmp.path().join("backbone.safetensors");
     envision4d_model::checkpoint::save_checkpoint(&t.model, &c.model, &ckpt).unwrap();
 
+    // Ablation variants start from the same stage-1 weights: linear velocity keeps its own
+    // 6-channel motion head, post-layer keeps every weight.
+    for (motion, placement) in [
+        (envision4d_model::config::MotionModel::LinearVelocity, envision4d_model::config::TemporalPlacement::InLayer),
+        (envision4d_model::config::MotionModel::Lifting, envision4d_model::config::TemporalPlacement::PostLayer),
+    ] {
+        let mut v = c.clone();
+        v.stage = Stage::Envision4d;
+        v.init_checkpoint = Some(ckpt.clone());
+        v.model.motion_model = motion;
+        v.model.temporal_attention = placement;
+        let m = envision4d_train::step::build_model(&v, &device).expect("variant initialises from stage 1");
+        assert_eq!(flat_params(&m.aggregator.frame_blocks), flat_params(&t.model.aggregator.frame_blocks));
+        assert_eq!(flat_params(&m.depth_head), flat_params(&t.model.depth_head));
+        assert_eq!(m.aggregator.placement, placement);
+    }
+
     let mut s = config_at(&data, &tmp.path().join("stage2"));
     s.teacher = Teacher::Backbone;
     s.init_checkpoint = Some(ckpt);
