@@ -114,13 +114,7 @@ impl Envision4d {
         let agg = &backbone.aggregator;
         let taps: [Tensor<4>; 4] = taps_idx.map(|l| agg.layer(l));
         let (depth, depth_conf) = if heads.depth {
-            let (d, c) = depth_activation(self.depth_head.forward_chunked(
-                &taps,
-                agg.patch_start,
-                [h, w],
-                None,
-                self.dpt_frame_chunk,
-            ));
+            let (d, c) = self.depth(&taps, agg.patch_start, [h, w]);
             (Some(d), Some(c))
         } else {
             (None, None)
@@ -227,6 +221,11 @@ impl Envision4d {
         ))
     }
 
+    /// The depth head on the DPT taps: `([B, S, H, W, 1]` depth, `[B, S, H, W]` confidence`)`.
+    fn depth(&self, taps: &[Tensor<4>; 4], patch_start: usize, size: [usize; 2]) -> (Tensor<5>, Tensor<4>) {
+        depth_activation(self.depth_head.forward_chunked(taps, patch_start, size, None, self.dpt_frame_chunk))
+    }
+
     /// Plain VGGT on `images [B, S, 3, H, W]`: the aggregator without its temporal blocks,
     /// the camera head on every frame's own camera token (no future-pose module), and the
     /// depth head when `depth` is [`VggtDepth::Run`]. This is the backbone stage's network and
@@ -244,14 +243,7 @@ impl Envision4d {
         let depth = match depth {
             VggtDepth::Run => {
                 let taps: [Tensor<4>; 4] = self.temporal_layers.map(|l| agg.layer(l));
-                let (d, c) = depth_activation(self.depth_head.forward_chunked(
-                    &taps,
-                    agg.patch_start,
-                    [h, w],
-                    None,
-                    self.dpt_frame_chunk,
-                ));
-                Some((d, c))
+                Some(self.depth(&taps, agg.patch_start, [h, w]))
             }
             VggtDepth::Skip => None,
         };

@@ -46,6 +46,17 @@ pub fn split(dataset: &ClipDataset, which: Split, seed: u64) -> Vec<usize> {
     dataset.split_indices(which, seed, &SplitRatios::default())
 }
 
+/// Interleaved RGB (HWC) to planar (CHW).
+pub fn hwc_to_chw(hwc: &[f32], h: usize, w: usize) -> Vec<f32> {
+    let mut chw = vec![0.0; 3 * h * w];
+    for p in 0..h * w {
+        for c in 0..3 {
+            chw[c * h * w + p] = hwc[p * 3 + c];
+        }
+    }
+    chw
+}
+
 impl HostClip {
     /// CHW frames and, when the layout has them, cameras and depth (depth must be on the
     /// frame grid: the synthetic layout writes it there).
@@ -55,19 +66,7 @@ impl HostClip {
             .first()
             .ok_or_else(|| TrainError::Batch(format!("clip {} has no frames", clip.id)))?;
         let (h, w) = (first.height, first.width);
-        let frames = clip
-            .frames
-            .iter()
-            .map(|f| {
-                let mut chw = vec![0.0; 3 * h * w];
-                for p in 0..h * w {
-                    for c in 0..3 {
-                        chw[c * h * w + p] = f.data[p * 3 + c];
-                    }
-                }
-                chw
-            })
-            .collect();
+        let frames = clip.frames.iter().map(|f| hwc_to_chw(&f.data, h, w)).collect();
         let cameras = clip
             .gt
             .iter()

@@ -4,7 +4,8 @@
 
 use crate::error::{Result, TrainError};
 use burn::tensor::Tensor;
-use envision4d_model::adapter::{AdaptedGaussians, OpacityMapping};
+use envision4d_model::adapter::{gaussians_at, AdaptedGaussians, Exclusion, OpacityMapping};
+use envision4d_splat::Gaussians;
 use envision4d_model::model::{Heads, Predictions};
 use envision4d_model::pose::pose_encoding_to_extri_intri;
 use envision4d_model::Envision4d;
@@ -67,5 +68,17 @@ impl Scene {
         let mut s = self.clone();
         s.adapted.motions = s.adapted.motions.zeros_like();
         s
+    }
+}
+
+/// The Gaussians of batch element `b` at timestamp `j` as the rasterizer takes them.
+pub fn gaussians_for(a: &AdaptedGaussians, b: usize, j: usize, exclusion: Exclusion) -> Gaussians {
+    let (means, quats, scales, opacities, colors) = gaussians_at(a, b, j, exclusion);
+    Gaussians {
+        means,
+        quats,
+        scales,
+        opacities,
+        colors,
     }
 }

@@ -119,17 +119,7 @@ impl Trainer {
             ParallelGradients::NonFinite(outcome) => {
                 self.skipped += 1;
                 self.consecutive_nonfinite += 1;
-                Ok(StepReport {
-                    step,
-                    total: f64::NAN,
-                    rgb: f64::NAN,
-                    camera: f64::NAN,
-                    depth: f64::NAN,
-                    psnr: None,
-                    lr,
-                    phase: self.schedule.phase(step),
-                    outcome,
-                })
+                Ok(StepReport::skipped(step, lr, self.schedule.phase(step), outcome))
             }
             ParallelGradients::Ready { grads, mut report } => {
                 report.outcome = self.apply(lr, grads);

@@ -15,10 +15,10 @@ use burn::tensor::{Device, Tensor};
 use envision4d_losses::{camera_distill, LpipsNet, LpipsStatus, RgbLoss};
 pub use crate::init::{build_model, identity_pose_init, INITIAL_FOV_RAD, POSE_OUTPUT_INIT_SCALE};
 use crate::backbone::{backbone_loss, masked_l1, FrozenTeacher};
-use crate::infer::{predict_scene, Scene};
-use envision4d_model::adapter::{gaussians_at, AdaptedGaussians, Exclusion};
+use crate::infer::{gaussians_for, predict_scene, Scene};
+use envision4d_model::adapter::{AdaptedGaussians, Exclusion};
 use envision4d_model::Envision4d;
-use envision4d_splat::{render, Cameras, Gaussians, RasterConfig};
+use envision4d_splat::{render, Cameras, RasterConfig};
 
 
 /// Loss terms of one step (scalar tensors `[1]`, still attached to the graph).
@@ -47,6 +47,23 @@ pub struct StepReport {
     pub lr: f64,
     pub phase: Phase,
     pub outcome: StepOutcome,
+}
+
+impl StepReport {
+    /// The report of a step that was not applied (its loss terms unknown).
+    pub fn skipped(step: u64, lr: f64, phase: Phase, outcome: StepOutcome) -> StepReport {
+        StepReport {
+            step,
+            total: f64::NAN,
+            rgb: f64::NAN,
+            camera: f64::NAN,
+            depth: f64::NAN,
+            psnr: None,
+            lr,
+            phase,
+            outcome,
+        }
+    }
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -80,14 +97,7 @@ pub fn render_targets(
 ) -> Result<Tensor<4>> {
     let mut frames = Vec::with_capacity(targets.len());
     for &j in targets {
-        let (means, quats, scales, opacities, colors) = gaussians_at(adapted, b, j, exclusion);
-        let g = Gaussians {
-            means,
-            quats,
-            scales,
-            opacities,
-            colors,
-        };
+        let g = gaussians_for(adapted, b, j, exclusion);
         let cams = Cameras {
             viewmats: extrinsics
                 .clone()
@@ -339,17 +349,12 @@ impl Trainer {
                 self.step += 1;
                 self.skipped += 1;
                 self.consecutive_nonfinite += 1;
-                return Ok(StepReport {
+                return Ok(StepReport::skipped(
                     step,
-                    total: f64::NAN,
-                    rgb: f64::NAN,
-                    camera: f64::NAN,
-                    depth: f64::NAN,
-                    psnr: None,
                     lr,
-                    phase: self.schedule.phase(step),
-                    outcome: StepOutcome::SkippedNonFiniteLoss,
-                });
+                    self.schedule.phase(step),
+                    StepOutcome::SkippedNonFiniteLoss,
+                ));
             }
             Err(e) => return Err(e),
         };

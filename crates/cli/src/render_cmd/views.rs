@@ -9,7 +9,8 @@ use super::poses::{lane_shifted, HostCameras};
 use crate::image_out::{write_gray, write_rgb};
 use anyhow::{Context, Result};
 use burn::tensor::Device;
-use envision4d_model::adapter::{gaussians_at, AdaptedGaussians, Exclusion};
+use envision4d_model::adapter::{AdaptedGaussians, Exclusion};
+use envision4d_train::infer::gaussians_for;
 use envision4d_splat::ply::{write_ply, PlyGaussians, RenderParams};
 use envision4d_splat::{render, Cameras, Gaussians, RasterConfig};
 
@@ -65,15 +66,7 @@ pub fn render_steps(
     let raster = RasterConfig::default();
     let mut rendered = 0;
     for step in steps_to_render(plan) {
-        let (means, quats, scales, opacities, colors) =
-            gaussians_at(adapted, 0, step.index, EXCLUSION);
-        let g = Gaussians {
-            means,
-            quats,
-            scales,
-            opacities,
-            colors,
-        };
+        let g = gaussians_for(adapted, 0, step.index, EXCLUSION);
         let views = step_views(&step, cams, plan);
         let ks = vec![cams.ks[step.index]; views.viewmats.len()];
         let cameras = Cameras::from_host(&views.viewmats, &ks, w as u32, h as u32, device);

@@ -49,15 +49,7 @@ pub fn synth_clip(seed: u64) -> HostClip {
     let frames = r
         .frames
         .iter()
-        .map(|f| {
-            let mut chw = vec![0.0; 3 * H * W];
-            for p in 0..H * W {
-                for c in 0..3 {
-                    chw[c * H * W + p] = f.rgb[p * 3 + c];
-                }
-            }
-            chw
-        })
+        .map(|f| envision4d_train::data::hwc_to_chw(&f.rgb, H, W))
         .collect();
     HostClip {
         height: H,
