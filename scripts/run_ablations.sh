@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
-# Trains the five small-scale ablation variants (configs/ablation/*.toml, 600 steps each from
+# Trains the five small-scale ablation variants (configs/ablation/*.toml, 400 steps each from
 # the stage-1 backbone) and evaluates each on the held-out synthetic clips; writes
 # runs/ablation-summary.md. Needs runs/synth-backbone/model.safetensors and
-# data/synth-heldout (docs/TRAINING.md). About 35 minutes on a 2-core CPU.
+# data/synth-heldout (docs/TRAINING.md). About 30 minutes on a 2-core CPU.
 set -euo pipefail
 BIN=${ENVISION4D:-target/release/envision4d}
 VARIANTS=${VARIANTS:-"paper linear-velocity post-layer no-warmup no-progressive"}
