@@ -8,7 +8,7 @@ use envision4d_train::freeze::ParamSplit;
 use envision4d_train::run::{run as run_training, Observer, RunOptions};
 use envision4d_train::step::build_model;
 use envision4d_train::validate::ValReport;
-use envision4d_train::{StepReport, TrainError, Trainer};
+use envision4d_train::{StepReport, TrainError};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::{Path, PathBuf};
 
@@ -137,11 +137,8 @@ fn dry_run(args: &TrainArgs, cfg: envision4d_train::TrainConfig, device: &burn::
             println!("{key}: {} ({state})", p.display());
         }
     }
-    if cfg.init_checkpoint.as_deref().is_none_or(Path::exists) {
-        if let Err(e) = Trainer::new(cfg, device) {
-            println!("note: this config cannot start: {e}");
-        }
-    }
+    // Building the optimiser and the teacher would load the (possibly 5 GB) weights again:
+    // the dry run stops at the resolved settings, the counts and the file check above.
     Ok(())
 }
 

@@ -31,8 +31,13 @@ fn shipped_configs_parse_paper_values() {
     assert_eq!(t.model.depth, 4);
     let b = envision4d_train::load(&config_path("synth-backbone.toml")).unwrap();
     assert_eq!(b.stage, Stage::Backbone);
-    // Stage 2 must build the very network stage 1 trained.
+    // Stage 2 (and its continuation) must build the very network stage 1 trained.
     assert_eq!(b.model, t.model);
+    let m = envision4d_train::load(&config_path("synth-mix.toml")).unwrap();
+    assert_eq!(m.model, t.model);
+    for v in ["paper", "linear-velocity", "post-layer", "no-warmup", "no-progressive"] {
+        envision4d_train::load(&config_path(&format!("ablation/{v}.toml"))).unwrap();
+    }
 }
 
 /// Guards against a typo in a config key being silently ignored.
