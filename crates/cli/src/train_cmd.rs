@@ -110,14 +110,22 @@ pub fn run(args: TrainArgs) -> Result<()> {
     Ok(())
 }
 
-fn dry_run(args: &TrainArgs, cfg: envision4d_train::TrainConfig, device: &burn::tensor::Device) -> Result<()> {
+fn dry_run(
+    args: &TrainArgs,
+    cfg: envision4d_train::TrainConfig,
+    device: &burn::tensor::Device,
+) -> Result<()> {
     // Build without the init weights (they may be absent here) to count parameters, then
     // report whether the files the run needs exist.
     let mut bare = cfg.clone();
     bare.init_checkpoint = None;
     let model = build_model(&bare, device).map_err(|e| InputError(e.to_string()))?;
     let split = ParamSplit::new(&model, &cfg.freeze);
-    println!("# resolved settings ({})\n{}", args.config.display(), cfg.to_toml());
+    println!(
+        "# resolved settings ({})\n{}",
+        args.config.display(),
+        cfg.to_toml()
+    );
     println!(
         "parameters: {} trainable, {} frozen ({} total) on {:?}",
         split.trainable_count,
@@ -188,7 +196,8 @@ impl Observer for Bar {
             r.total, r.rgb, r.camera, r.depth, r.phase
         ));
         if !r.outcome.applied() {
-            self.0.println(format!("step {}: skipped ({:?})", r.step, r.outcome));
+            self.0
+                .println(format!("step {}: skipped ({:?})", r.step, r.outcome));
         }
     }
     fn validation(&mut self, v: &ValReport) {

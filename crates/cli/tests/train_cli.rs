@@ -56,7 +56,19 @@ fn short_run_then_resume() {
     let tmp = tempfile::tempdir().unwrap();
     let data = tmp.path().join("data");
     let synth = bin(
-        &["synth", "--out", data.to_str().unwrap(), "--clips", "3", "--frames", "4", "--size", "56x84", "--supersample", "1"],
+        &[
+            "synth",
+            "--out",
+            data.to_str().unwrap(),
+            "--clips",
+            "3",
+            "--frames",
+            "4",
+            "--size",
+            "56x84",
+            "--supersample",
+            "1",
+        ],
         tmp.path(),
     );
     assert!(synth.status.success(), "{}", text(&synth));
@@ -65,11 +77,21 @@ fn short_run_then_resume() {
     let c = cfg.to_str().unwrap();
     let first = bin(&["train", "--config", c, "--stop-at", "2"], tmp.path());
     assert!(first.status.success(), "{}", text(&first));
-    let second = bin(&["train", "--config", c, "--resume", out.to_str().unwrap()], tmp.path());
+    let second = bin(
+        &["train", "--config", c, "--resume", out.to_str().unwrap()],
+        tmp.path(),
+    );
     assert!(second.status.success(), "{}", text(&second));
-    assert!(text(&second).contains("trained 3 steps"), "{}", text(&second));
+    assert!(
+        text(&second).contains("trained 3 steps"),
+        "{}",
+        text(&second)
+    );
     let log = std::fs::read_to_string(out.join("log.jsonl")).unwrap();
-    let steps = log.lines().filter(|l| l.contains("\"kind\":\"step\"")).count();
+    let steps = log
+        .lines()
+        .filter(|l| l.contains("\"kind\":\"step\""))
+        .count();
     assert_eq!(steps, 3, "{log}");
     assert!(out.join("model.safetensors").is_file());
     assert!(out.join("checkpoints/step-00000003/state.json").is_file());
@@ -84,11 +106,23 @@ fn bad_input_is_exit_2_naming_the_problem() {
     let cfg = write_config(tmp.path(), &missing, &tmp.path().join("run"));
     let c = cfg.to_str().unwrap();
     let typo = tmp.path().join("typo.toml");
-    std::fs::write(&typo, std::fs::read_to_string(&cfg).unwrap().replace("batch_size", "batch_sise")).unwrap();
-    let o = bin(&["train", "--config", typo.to_str().unwrap(), "--dry-run"], tmp.path());
+    std::fs::write(
+        &typo,
+        std::fs::read_to_string(&cfg)
+            .unwrap()
+            .replace("batch_size", "batch_sise"),
+    )
+    .unwrap();
+    let o = bin(
+        &["train", "--config", typo.to_str().unwrap(), "--dry-run"],
+        tmp.path(),
+    );
     assert_eq!(o.status.code(), Some(2), "{}", text(&o));
     assert!(text(&o).contains("batch_sise"), "{}", text(&o));
-    let o = bin(&["train", "--config", c, "--devices", "cpu,tpu"], tmp.path());
+    let o = bin(
+        &["train", "--config", c, "--devices", "cpu,tpu"],
+        tmp.path(),
+    );
     assert_eq!(o.status.code(), Some(2), "{}", text(&o));
     assert!(text(&o).contains("tpu"), "{}", text(&o));
     let o = bin(&["train", "--config", c], tmp.path());

@@ -222,8 +222,19 @@ impl Envision4d {
     }
 
     /// The depth head on the DPT taps: `([B, S, H, W, 1]` depth, `[B, S, H, W]` confidence`)`.
-    fn depth(&self, taps: &[Tensor<4>; 4], patch_start: usize, size: [usize; 2]) -> (Tensor<5>, Tensor<4>) {
-        depth_activation(self.depth_head.forward_chunked(taps, patch_start, size, None, self.dpt_frame_chunk))
+    fn depth(
+        &self,
+        taps: &[Tensor<4>; 4],
+        patch_start: usize,
+        size: [usize; 2],
+    ) -> (Tensor<5>, Tensor<4>) {
+        depth_activation(self.depth_head.forward_chunked(
+            taps,
+            patch_start,
+            size,
+            None,
+            self.dpt_frame_chunk,
+        ))
     }
 
     /// Plain VGGT on `images [B, S, 3, H, W]`: the aggregator without its temporal blocks,

@@ -30,7 +30,9 @@ pub struct BackboneTerms {
 pub fn masked_l1(pred: Tensor<5>, target: Tensor<5>) -> Tensor<1> {
     let b = pred.dims()[0];
     let mask = target.clone().greater_elem(0.0).float();
-    let err = ((pred - target).abs() * mask.clone()).reshape([b as i32, -1]).sum_dim(1);
+    let err = ((pred - target).abs() * mask.clone())
+        .reshape([b as i32, -1])
+        .sum_dim(1);
     let count = mask.reshape([b as i32, -1]).sum_dim(1).clamp_min(1.0);
     (err / count).mean().reshape([1])
 }
@@ -97,8 +99,9 @@ impl FrozenTeacher {
     /// Loads the teacher's backbone (aggregator, camera and depth heads) from `path`.
     pub fn load(config: &ModelConfig, path: &Path, device: &burn::tensor::Device) -> Result<Self> {
         let mut model = Envision4d::new(config, device);
-        load_checkpoint(&mut model, path, CheckpointKind::Vggt1bInit)
-            .map_err(|e| TrainError::Input(format!("teacher_checkpoint {}: {e}", path.display())))?;
+        load_checkpoint(&mut model, path, CheckpointKind::Vggt1bInit).map_err(|e| {
+            TrainError::Input(format!("teacher_checkpoint {}: {e}", path.display()))
+        })?;
         Ok(FrozenTeacher {
             model: model.no_grad(),
         })
@@ -108,7 +111,9 @@ impl FrozenTeacher {
     /// of every frame (future ones included) and depth of the first `context` frames.
     pub fn targets(&self, images: Tensor<5>, context: usize) -> Result<TeacherTargets> {
         let device = self.model.devices().into_iter().next().unwrap_or_default();
-        let out = self.model.vggt(images.detach().to_device(&device), VggtDepth::Run);
+        let out = self
+            .model
+            .vggt(images.detach().to_device(&device), VggtDepth::Run);
         let pose_enc = out.pose_enc().detach();
         let (depth, _) = out
             .depth

@@ -132,7 +132,11 @@ pub fn restore_param_ids(model: Envision4d, ids: &[u64]) -> Result<Envision4d> {
 pub fn save(trainer: &Trainer, root: &Path, keep: usize, config_identity: &str) -> Result<PathBuf> {
     std::fs::create_dir_all(root).map_err(io(root))?;
     let final_dir = step_dir(root, trainer.step);
-    let tmp = root.join(format!(".tmp-{DIR_PREFIX}{:08}-{}", trainer.step, std::process::id()));
+    let tmp = root.join(format!(
+        ".tmp-{DIR_PREFIX}{:08}-{}",
+        trainer.step,
+        std::process::id()
+    ));
     if tmp.exists() {
         std::fs::remove_dir_all(&tmp).map_err(io(&tmp))?;
     }
@@ -154,8 +158,8 @@ pub fn save(trainer: &Trainer, root: &Path, keep: usize, config_identity: &str) 
             param_shapes: param_shapes(&trainer.model),
             config: config_identity.to_string(),
         };
-        let json = serde_json::to_string_pretty(&state)
-            .map_err(|e| TrainError::Model(e.to_string()))?;
+        let json =
+            serde_json::to_string_pretty(&state).map_err(|e| TrainError::Model(e.to_string()))?;
         let sp = tmp.join(STATE_FILE);
         std::fs::write(&sp, json).map_err(io(&sp))
     };
@@ -166,7 +170,11 @@ pub fn save(trainer: &Trainer, root: &Path, keep: usize, config_identity: &str) 
     if final_dir.exists() {
         // A same-step directory from an abandoned timeline: moved aside before the new one
         // takes its name, removed only once the new one is in place.
-        let aside = root.join(format!(".replaced-{DIR_PREFIX}{:08}-{}", trainer.step, std::process::id()));
+        let aside = root.join(format!(
+            ".replaced-{DIR_PREFIX}{:08}-{}",
+            trainer.step,
+            std::process::id()
+        ));
         std::fs::rename(&final_dir, &aside).map_err(io(&final_dir))?;
         std::fs::rename(&tmp, &final_dir).map_err(io(&final_dir))?;
         let _ = std::fs::remove_dir_all(&aside);
@@ -227,7 +235,11 @@ fn flatten(prefix: &str, v: &toml::Value, out: &mut Vec<(String, String)>) {
     match v {
         toml::Value::Table(t) => {
             for (k, v) in t {
-                let key = if prefix.is_empty() { k.clone() } else { format!("{prefix}.{k}") };
+                let key = if prefix.is_empty() {
+                    k.clone()
+                } else {
+                    format!("{prefix}.{k}")
+                };
                 flatten(&key, v, out);
             }
         }
@@ -242,7 +254,8 @@ pub fn config_diff(now: &str, was: &str) -> String {
         if let Ok(v) = t.parse::<toml::Table>() {
             flatten("", &toml::Value::Table(v), &mut out);
         }
-        out.into_iter().collect::<std::collections::BTreeMap<_, _>>()
+        out.into_iter()
+            .collect::<std::collections::BTreeMap<_, _>>()
     };
     let (a, b) = (keys(now), keys(was));
     let mut all: Vec<&String> = a.keys().chain(b.keys()).collect();

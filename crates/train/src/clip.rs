@@ -42,7 +42,11 @@ impl ModuleVisitor for Scale<'_> {
 
 /// Scales `grads` so their global L2 norm is at most `max_norm`; returns the norm before
 /// clipping (`None` when there is no gradient).
-pub fn clip_global_norm<M: Module>(module: &M, grads: &mut GradientsParams, max_norm: f64) -> Option<f64> {
+pub fn clip_global_norm<M: Module>(
+    module: &M,
+    grads: &mut GradientsParams,
+    max_norm: f64,
+) -> Option<f64> {
     let mut sq = SquaredNorm { grads, acc: None };
     module.visit(&mut sq);
     let norm = sq.acc?.into_data().iter::<f64>().next()?.sqrt();

@@ -66,7 +66,11 @@ impl HostClip {
             .first()
             .ok_or_else(|| TrainError::Batch(format!("clip {} has no frames", clip.id)))?;
         let (h, w) = (first.height, first.width);
-        let frames = clip.frames.iter().map(|f| hwc_to_chw(&f.data, h, w)).collect();
+        let frames = clip
+            .frames
+            .iter()
+            .map(|f| hwc_to_chw(&f.data, h, w))
+            .collect();
         let cameras = clip
             .gt
             .iter()

@@ -5,10 +5,10 @@
 use crate::error::{Result, TrainError};
 use burn::tensor::Tensor;
 use envision4d_model::adapter::{gaussians_at, AdaptedGaussians, Exclusion, OpacityMapping};
-use envision4d_splat::Gaussians;
 use envision4d_model::model::{Heads, Predictions};
 use envision4d_model::pose::pose_encoding_to_extri_intri;
 use envision4d_model::Envision4d;
+use envision4d_splat::Gaussians;
 
 /// FoV channels of the 9-d pose encoding (`fov_h`, `fov_w`).
 pub const FOV_CHANNELS: std::ops::Range<usize> = 7..9;
@@ -49,7 +49,15 @@ pub fn predict_scene(model: &Envision4d, context: Tensor<5>, step: u64) -> Resul
     let (extr, intr) = pose_encoding_to_extri_intri(clamp_fov(pose), h, w);
     // A finite encoding can still decode to NaN cameras (a zero quaternion): the NaN guard's
     // business, not a render error that ends the run.
-    let finite = |t: &Tensor<4>| t.clone().is_finite().bool_not().any().into_data().iter::<bool>().all(|b| !b);
+    let finite = |t: &Tensor<4>| {
+        t.clone()
+            .is_finite()
+            .bool_not()
+            .any()
+            .into_data()
+            .iter::<bool>()
+            .all(|b| !b)
+    };
     if !finite(&extr) || !finite(&intr) {
         return Err(TrainError::NonFinite("camera"));
     }
@@ -57,7 +65,9 @@ pub fn predict_scene(model: &Envision4d, context: Tensor<5>, step: u64) -> Resul
     pred.backbone.intrinsics = intr;
     let adapted = model
         .adapt(&pred, OpacityMapping::default(), step)
-        .ok_or_else(|| TrainError::Model("adapt needs the depth, Gaussian and motion heads".into()))?;
+        .ok_or_else(|| {
+            TrainError::Model("adapt needs the depth, Gaussian and motion heads".into())
+        })?;
     Ok(Scene { pred, adapted })
 }
 

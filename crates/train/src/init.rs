@@ -4,8 +4,8 @@
 use crate::config::{Stage, TrainConfig};
 use crate::error::{Result, TrainError};
 use burn::tensor::{Device, Tensor};
-use envision4d_model::checkpoint::CheckpointKind;
 use envision4d_model::aggregator::Aggregator;
+use envision4d_model::checkpoint::CheckpointKind;
 use envision4d_model::config::{MotionModel, TemporalPlacement};
 use envision4d_model::Envision4d;
 use std::path::Path;
@@ -65,13 +65,17 @@ pub fn build_model(config: &TrainConfig, device: &Device) -> Result<Envision4d> 
     Ok(model)
 }
 
-
 /// Loads `path` (VGGT-1B or one of our checkpoints; the VGGT part must be present, new
 /// modules keep their init) into the paper variant of the model, then carries it over to
 /// the configured ablation variant: the post-layer placement keeps every weight (same
 /// shapes, other wiring), linear velocity keeps its own fresh motion head (6 output
 /// channels where the checkpoint has the 3 of conditioned motion lifting).
-fn init_from(model: Envision4d, config: &TrainConfig, path: &Path, device: &Device) -> Result<Envision4d> {
+fn init_from(
+    model: Envision4d,
+    config: &TrainConfig,
+    path: &Path,
+    device: &Device,
+) -> Result<Envision4d> {
     let mut paper = config.model.clone();
     paper.motion_model = MotionModel::default();
     paper.temporal_attention = TemporalPlacement::default();

@@ -246,10 +246,18 @@ pub fn validate(cfg: &TrainConfig) -> Result<()> {
     }
     let r = &cfg.run;
     if r.max_nonfinite_steps == 0 {
-        return Err(TrainError::invalid("run.max_nonfinite_steps", 0, "must be >= 1"));
+        return Err(TrainError::invalid(
+            "run.max_nonfinite_steps",
+            0,
+            "must be >= 1",
+        ));
     }
     if r.keep_checkpoints == 0 {
-        return Err(TrainError::invalid("run.keep_checkpoints", 0, "must be >= 1"));
+        return Err(TrainError::invalid(
+            "run.keep_checkpoints",
+            0,
+            "must be >= 1",
+        ));
     }
     if r.log_every == 0 || r.checkpoint_every == 0 {
         return Err(TrainError::invalid(

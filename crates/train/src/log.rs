@@ -35,7 +35,10 @@ fn keep_record(line: &str, done: u64) -> bool {
     let Ok(v) = serde_json::from_str::<Value>(line) else {
         return false;
     };
-    match (v.get("kind").and_then(Value::as_str), v.get("step").and_then(Value::as_u64)) {
+    match (
+        v.get("kind").and_then(Value::as_str),
+        v.get("step").and_then(Value::as_u64),
+    ) {
         (Some("step"), Some(s)) => s < done,
         (Some(_), Some(s)) => s <= done,
         _ => false,

@@ -69,17 +69,23 @@ impl Trainer {
             let model: Envision4d = self.model.clone().fork(device);
             let terms = match self.loss_with(&model, batch, step) {
                 Err(TrainError::NonFinite(_)) => {
-                    return Ok(ParallelGradients::NonFinite(StepOutcome::SkippedNonFiniteLoss))
+                    return Ok(ParallelGradients::NonFinite(
+                        StepOutcome::SkippedNonFiniteLoss,
+                    ))
                 }
                 other => other?,
             };
             let v = values(&terms);
             if !v.total.is_finite() {
-                return Ok(ParallelGradients::NonFinite(StepOutcome::SkippedNonFiniteLoss));
+                return Ok(ParallelGradients::NonFinite(
+                    StepOutcome::SkippedNonFiniteLoss,
+                ));
             }
             let mut grads = (terms.total / n).backward();
             if !grads_finite(&model, &grads) {
-                return Ok(ParallelGradients::NonFinite(StepOutcome::SkippedNonFiniteGradient));
+                return Ok(ParallelGradients::NonFinite(
+                    StepOutcome::SkippedNonFiniteGradient,
+                ));
             }
             let gp = GradientsParams::from_params(&mut grads, &model, &self.split.trainable)
                 .to_device(&main, &self.model);
@@ -110,7 +116,11 @@ impl Trainer {
     /// One data-parallel step: [`Trainer::parallel_gradients`], then one Adam step on the
     /// first device. One bad shard skips the whole step: a partial update would weight the
     /// remaining shards differently from every other step.
-    pub fn train_step_parallel(&mut self, shards: &[Batch], devices: &[Device]) -> Result<StepReport> {
+    pub fn train_step_parallel(
+        &mut self,
+        shards: &[Batch],
+        devices: &[Device],
+    ) -> Result<StepReport> {
         let step = self.step;
         let lr = self.schedule.learning_rate(step);
         let result = self.parallel_gradients(shards, devices, step)?;
@@ -119,7 +129,12 @@ impl Trainer {
             ParallelGradients::NonFinite(outcome) => {
                 self.skipped += 1;
                 self.consecutive_nonfinite += 1;
-                Ok(StepReport::skipped(step, lr, self.schedule.phase(step), outcome))
+                Ok(StepReport::skipped(
+                    step,
+                    lr,
+                    self.schedule.phase(step),
+                    outcome,
+                ))
             }
             ParallelGradients::Ready { grads, mut report } => {
                 report.outcome = self.apply(lr, grads);

@@ -65,18 +65,27 @@ pub fn resolve_resume(dir: &Path) -> Result<PathBuf> {
     checkpoint::list(&dir.join(CHECKPOINT_DIR))?
         .pop()
         .map(|(_, p)| p)
-        .ok_or_else(|| TrainError::Batch(format!("--resume {}: no checkpoint in it", dir.display())))
+        .ok_or_else(|| {
+            TrainError::Batch(format!("--resume {}: no checkpoint in it", dir.display()))
+        })
 }
 
 /// Which training clip the `k`-th sample of the run is: a seeded shuffle per epoch, so the
 /// data order is a function of (seed, step) and a resumed run sees the same clips.
-fn sample_index(train: &[usize], seed: u64, k: u64, cache: &mut Option<(u64, Vec<usize>)>) -> usize {
+fn sample_index(
+    train: &[usize],
+    seed: u64,
+    k: u64,
+    cache: &mut Option<(u64, Vec<usize>)>,
+) -> usize {
     let len = train.len() as u64;
     let epoch = k / len;
     if cache.as_ref().is_none_or(|(e, _)| *e != epoch) {
         *cache = Some((epoch, epoch_order(train, seed, epoch)));
     }
-    cache.as_ref().map_or(train[0], |(_, o)| o[(k % len) as usize])
+    cache
+        .as_ref()
+        .map_or(train[0], |(_, o)| o[(k % len) as usize])
 }
 
 fn host_clip(ds: &ClipDataset, index: usize) -> Result<HostClip> {
@@ -87,7 +96,12 @@ fn host_clip(ds: &ClipDataset, index: usize) -> Result<HostClip> {
 }
 
 /// Runs (or resumes) the training `cfg` describes.
-pub fn run(cfg: TrainConfig, device: &Device, opts: RunOptions, obs: &mut dyn Observer) -> Result<RunSummary> {
+pub fn run(
+    cfg: TrainConfig,
+    device: &Device,
+    opts: RunOptions,
+    obs: &mut dyn Observer,
+) -> Result<RunSummary> {
     let out = cfg.run.out_dir.clone();
     let ckpt_root = out.join(CHECKPOINT_DIR);
     let config_path = out.join(CONFIG_FILE);
@@ -104,7 +118,10 @@ pub fn run(cfg: TrainConfig, device: &Device, opts: RunOptions, obs: &mut dyn Ob
             None
         }
     };
-    std::fs::create_dir_all(&out).map_err(|source| TrainError::Io { path: out.clone(), source })?;
+    std::fs::create_dir_all(&out).map_err(|source| TrainError::Io {
+        path: out.clone(),
+        source,
+    })?;
     envision4d_data::atomic::write_bytes(&config_path, cfg.to_toml().as_bytes())
         .map_err(|e| TrainError::Batch(e.to_string()))?;
 
@@ -134,14 +151,20 @@ pub fn run(cfg: TrainConfig, device: &Device, opts: RunOptions, obs: &mut dyn Ob
         return Err(TrainError::invalid(
             "optim.batch_size",
             cfg.optim.batch_size,
-            format!("must be a multiple of the {} devices of --devices", opts.devices.len()),
+            format!(
+                "must be a multiple of the {} devices of --devices",
+                opts.devices.len()
+            ),
         ));
     }
     // A resumed run takes its weights from the checkpoint: the init weights are not read
     // (they may have moved), but the teacher still needs its own.
     let mut build = cfg.clone();
     if resume_dir.is_some() {
-        build.teacher_checkpoint = cfg.teacher_checkpoint.clone().or(cfg.init_checkpoint.clone());
+        build.teacher_checkpoint = cfg
+            .teacher_checkpoint
+            .clone()
+            .or(cfg.init_checkpoint.clone());
         build.init_checkpoint = None;
     }
     let mut trainer = Trainer::new(build, device)?;
@@ -150,7 +173,11 @@ pub fn run(cfg: TrainConfig, device: &Device, opts: RunOptions, obs: &mut dyn Ob
     if let Some(dir) = &resume_dir {
         checkpoint::restore(&mut trainer, dir)?;
         checkpoint::set_aside_newer(&ckpt_root, trainer.step)?;
-        obs.note(&format!("resumed from {} at step {}", dir.display(), trainer.step));
+        obs.note(&format!(
+            "resumed from {} at step {}",
+            dir.display(),
+            trainer.step
+        ));
     }
     if opts.devices.len() > 1 {
         trainer.prepare_devices(&opts.devices)?;
@@ -173,7 +200,12 @@ pub fn run(cfg: TrainConfig, device: &Device, opts: RunOptions, obs: &mut dyn Ob
         let step = trainer.step;
         let b = cfg.optim.batch_size as u64;
         let clips = (0..b)
-            .map(|i| host_clip(&dataset, sample_index(&train, cfg.seed, step * b + i, &mut order_cache)))
+            .map(|i| {
+                host_clip(
+                    &dataset,
+                    sample_index(&train, cfg.seed, step * b + i, &mut order_cache),
+                )
+            })
             .collect::<Result<Vec<_>>>()?;
         let t0 = Instant::now();
         let report = if parallel {
@@ -205,7 +237,9 @@ pub fn run(cfg: TrainConfig, device: &Device, opts: RunOptions, obs: &mut dyn Ob
         let done = trainer.step;
         // A checkpoint only after an applied step: the weights are then finite by the
         // rollback in `Trainer::apply`, and a skipped streak never displaces a good one.
-        if (done % cfg.run.checkpoint_every == 0 || done == end) && trainer.consecutive_nonfinite == 0 {
+        if (done % cfg.run.checkpoint_every == 0 || done == end)
+            && trainer.consecutive_nonfinite == 0
+        {
             let dir = checkpoint::save(&trainer, &ckpt_root, cfg.run.keep_checkpoints, &identity)?;
             log.checkpoint(done, &dir)?;
             obs.checkpoint(&dir);
@@ -214,7 +248,14 @@ pub fn run(cfg: TrainConfig, device: &Device, opts: RunOptions, obs: &mut dyn Ob
         // Validation after the checkpoint, and never fatal: a bad validation clip must not
         // cost the steps since the last checkpoint.
         if cfg.run.val_every > 0 && done % cfg.run.val_every == 0 && !val_clips.is_empty() {
-            match validate(&trainer.model, cfg.stage, &val_clips, tc, done, &trainer.raster) {
+            match validate(
+                &trainer.model,
+                cfg.stage,
+                &val_clips,
+                tc,
+                done,
+                &trainer.raster,
+            ) {
                 Ok(v) => {
                     log.validation(&v)?;
                     obs.validation(&v);

@@ -3,23 +3,22 @@
 //! reaches the poses), weight L_rgb progressively, add the distillation terms, and take an
 //! Adam step on the trainable parameters only.
 
+use crate::backbone::{backbone_loss, masked_l1, FrozenTeacher};
 use crate::batch::Batch;
+use crate::clip::clip_global_norm;
 use crate::config::{ClipMode, Stage, Teacher, TrainConfig};
 use crate::error::{Result, TrainError};
-use crate::clip::clip_global_norm;
 use crate::freeze::{detach_frozen, grads_finite, params_finite, ParamSplit};
+use crate::infer::{gaussians_for, predict_scene, Scene};
+pub use crate::init::{build_model, identity_pose_init, INITIAL_FOV_RAD, POSE_OUTPUT_INIT_SCALE};
 use crate::schedule::{Phase, Schedule};
 use burn::grad_clipping::GradientClippingConfig;
 use burn::optim::{AdamConfig, GradientsParams, ModuleOptimizer};
 use burn::tensor::{Device, Tensor};
 use envision4d_losses::{camera_distill, LpipsNet, LpipsStatus, RgbLoss};
-pub use crate::init::{build_model, identity_pose_init, INITIAL_FOV_RAD, POSE_OUTPUT_INIT_SCALE};
-use crate::backbone::{backbone_loss, masked_l1, FrozenTeacher};
-use crate::infer::{gaussians_for, predict_scene, Scene};
 use envision4d_model::adapter::{AdaptedGaussians, Exclusion};
 use envision4d_model::Envision4d;
 use envision4d_splat::{render, Cameras, RasterConfig};
-
 
 /// Loss terms of one step (scalar tensors `[1]`, still attached to the graph).
 #[derive(Debug, Clone)]
@@ -186,7 +185,11 @@ impl Trainer {
                     .as_ref()
                     .or(config.init_checkpoint.as_ref())
                     .ok_or_else(|| {
-                        TrainError::invalid("teacher_checkpoint", "(none)", "teacher = \"backbone\" needs weights")
+                        TrainError::invalid(
+                            "teacher_checkpoint",
+                            "(none)",
+                            "teacher = \"backbone\" needs weights",
+                        )
                     })?;
                 Some(FrozenTeacher::load(&config.model, path, device)?)
             }
@@ -313,7 +316,11 @@ impl Trainer {
                 let teacher = self.teacher.as_ref().ok_or_else(|| {
                     TrainError::Model("teacher = \"backbone\" but no teacher is loaded".into())
                 })?;
-                Some(teacher.targets(batch.images.clone(), tc)?.to_device(&device))
+                Some(
+                    teacher
+                        .targets(batch.images.clone(), tc)?
+                        .to_device(&device),
+                )
             }
         };
         if let Some(t) = labels {
@@ -393,7 +400,11 @@ impl Trainer {
     /// a checkpoint never holds exploded weights.
     pub(crate) fn apply(&mut self, lr: f64, mut grads: GradientsParams) -> StepOutcome {
         if self.config.optim.grad_clip == ClipMode::GlobalNorm {
-            clip_global_norm(&self.model, &mut grads, self.config.optim.grad_clip_threshold);
+            clip_global_norm(
+                &self.model,
+                &mut grads,
+                self.config.optim.grad_clip_threshold,
+            );
         }
         let (model, optim) = (self.model.clone(), self.optim.clone());
         self.model = self.optim.step(lr, self.model.clone(), grads);

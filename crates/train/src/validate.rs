@@ -57,11 +57,7 @@ pub fn validate(
 ) -> Result<ValReport> {
     let t0 = std::time::Instant::now();
     let model = model.valid();
-    let device = model
-        .devices()
-        .into_iter()
-        .next()
-        .unwrap_or_default();
+    let device = model.devices().into_iter().next().unwrap_or_default();
     let (mut fut, mut ctx, mut cam, mut dep) = (vec![], vec![], vec![], vec![]);
     for clip in clips {
         let n = clip.frames.len();
@@ -89,7 +85,11 @@ pub fn validate(
                 }
             }
             Stage::Envision4d => {
-                let context_images = batch.images.clone().slice([0..1, 0..context, 0..3, 0..h, 0..w]);
+                let context_images =
+                    batch
+                        .images
+                        .clone()
+                        .slice([0..1, 0..context, 0..3, 0..h, 0..w]);
                 let scene = predict_scene(&model, context_images, step)?;
                 let bb = &scene.pred.backbone;
                 let all: Vec<usize> = (0..n).collect();

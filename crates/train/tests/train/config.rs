@@ -24,7 +24,10 @@ fn shipped_configs_parse_paper_values() {
     assert_eq!(c.model.embed_dim, 1024);
     assert_eq!(c.freeze, FreezeGroup::PAPER.to_vec());
     let n = envision4d_train::load(&config_path("nuscenes.toml")).unwrap();
-    assert_eq!((n.optim, n.loss.clone(), n.progressive), (c.optim, c.loss, c.progressive));
+    assert_eq!(
+        (n.optim, n.loss.clone(), n.progressive),
+        (c.optim, c.loss, c.progressive)
+    );
     assert_eq!(n.model.image_size, [294, 518]);
     let t = envision4d_train::load(&config_path("synth-tiny.toml")).unwrap();
     assert_eq!(t.model.image_size, [56, 84]);
@@ -35,7 +38,13 @@ fn shipped_configs_parse_paper_values() {
     assert_eq!(b.model, t.model);
     let m = envision4d_train::load(&config_path("synth-mix.toml")).unwrap();
     assert_eq!(m.model, t.model);
-    for v in ["paper", "linear-velocity", "post-layer", "no-warmup", "no-progressive"] {
+    for v in [
+        "paper",
+        "linear-velocity",
+        "post-layer",
+        "no-warmup",
+        "no-progressive",
+    ] {
         envision4d_train::load(&config_path(&format!("ablation/{v}.toml"))).unwrap();
     }
 }

@@ -2,7 +2,7 @@
 
 mod common;
 mod config;
-mod run;
 mod eval;
+mod run;
 mod schedule;
 mod step;

@@ -28,7 +28,8 @@ fn losses(out: &Path) -> Vec<(u64, f64)> {
         .lines()
         .filter_map(|l| {
             let v: serde_json::Value = serde_json::from_str(l).unwrap();
-            (v["kind"] == "step").then(|| (v["step"].as_u64().unwrap(), v["loss"].as_f64().unwrap()))
+            (v["kind"] == "step")
+                .then(|| (v["step"].as_u64().unwrap(), v["loss"].as_f64().unwrap()))
         })
         .collect()
 }
@@ -45,17 +46,34 @@ fn resume_equals_uninterrupted_run() {
     let whole = config_at(&data, &tmp.path().join("whole"));
     let a = run(whole.clone(), &device, RunOptions::default(), &mut Quiet).unwrap();
     let split = config_at(&data, &tmp.path().join("split"));
-    run(split.clone(), &device, RunOptions { stop_at: Some(2), ..Default::default() }, &mut Quiet).unwrap();
+    run(
+        split.clone(),
+        &device,
+        RunOptions {
+            stop_at: Some(2),
+            ..Default::default()
+        },
+        &mut Quiet,
+    )
+    .unwrap();
     // Starting again without --resume must refuse rather than overwrite the run.
     let again = run(split.clone(), &device, RunOptions::default(), &mut Quiet);
     assert!(again.unwrap_err().to_string().contains("--resume"));
-    let resume = RunOptions { resume: Some(split.run.out_dir.clone()), ..Default::default() };
+    let resume = RunOptions {
+        resume: Some(split.run.out_dir.clone()),
+        ..Default::default()
+    };
     let b = run(split.clone(), &device, resume, &mut Quiet).unwrap();
     assert_eq!((a.steps, b.steps), (4, 4));
     assert_eq!(losses(&whole.run.out_dir), losses(&split.run.out_dir));
     let load = |p: &Path| {
         let mut m = envision4d_model::Envision4d::new(&whole.model, &device);
-        envision4d_model::checkpoint::load_checkpoint(&mut m, p, envision4d_model::checkpoint::CheckpointKind::Full).unwrap();
+        envision4d_model::checkpoint::load_checkpoint(
+            &mut m,
+            p,
+            envision4d_model::checkpoint::CheckpointKind::Full,
+        )
+        .unwrap();
         flat_params(&m)
     };
     assert_eq!(load(&a.model), load(&b.model), "resumed parameters differ");
@@ -65,12 +83,20 @@ fn resume_equals_uninterrupted_run() {
     // A changed hyper-parameter is refused, naming the key.
     let mut changed = split.clone();
     changed.optim.lr *= 2.0;
-    let resume = || RunOptions { resume: Some(split.run.out_dir.clone()), ..Default::default() };
-    let err = run(changed, &device, resume(), &mut Quiet).unwrap_err().to_string();
+    let resume = || RunOptions {
+        resume: Some(split.run.out_dir.clone()),
+        ..Default::default()
+    };
+    let err = run(changed, &device, resume(), &mut Quiet)
+        .unwrap_err()
+        .to_string();
     assert!(err.contains("optim.lr"), "{err}");
     // Resuming from the older checkpoint sets the newer one aside (a later `--resume RUN`
     // must not pick up the abandoned timeline) and rewrites it.
-    let older = RunOptions { resume: Some(kept[0].1.clone()), ..Default::default() };
+    let older = RunOptions {
+        resume: Some(kept[0].1.clone()),
+        ..Default::default()
+    };
     run(split.clone(), &device, older, &mut Quiet).unwrap();
     assert!(root.join(".abandoned-step-00000004").is_dir());
     assert_eq!(losses(&split.run.out_dir), losses(&whole.run.out_dir));
@@ -94,13 +120,27 @@ fn nan_guard_stops_run_and_keeps_last_checkpoint() {
         .unwrap_err()
         .to_string();
     assert!(err.contains("non-finite steps in a row"), "{err}");
-    let (_, last) = list(&c.run.out_dir.join(CHECKPOINT_DIR)).unwrap().pop().unwrap();
+    let (_, last) = list(&c.run.out_dir.join(CHECKPOINT_DIR))
+        .unwrap()
+        .pop()
+        .unwrap();
     assert!(err.contains(&last.display().to_string()), "{err}");
     let mut m = envision4d_model::Envision4d::new(&c.model, &device);
-    envision4d_model::checkpoint::load_checkpoint(&mut m, &last.join(MODEL_FILE), envision4d_model::checkpoint::CheckpointKind::Full).unwrap();
-    assert!(flat_params(&m).iter().all(|v| v.is_finite()), "a checkpoint holds non-finite weights");
+    envision4d_model::checkpoint::load_checkpoint(
+        &mut m,
+        &last.join(MODEL_FILE),
+        envision4d_model::checkpoint::CheckpointKind::Full,
+    )
+    .unwrap();
+    assert!(
+        flat_params(&m).iter().all(|v| v.is_finite()),
+        "a checkpoint holds non-finite weights"
+    );
     let log = std::fs::read_to_string(c.run.out_dir.join(LOG_FILE)).unwrap();
-    assert!(log.contains("skipped_nonfinite"), "skipped steps are logged");
+    assert!(
+        log.contains("skipped_nonfinite"),
+        "skipped steps are logged"
+    );
 }
 
 /// Guards the backbone stage and the frozen teacher: stage 1 trains only what plain VGGT has
@@ -120,17 +160,24 @@ fn backbone_stage_then_teacher() {
     let mut t = Trainer::new(c.clone(), &device).unwrap();
     let gs_before = flat_params(&t.model.gs_head);
     let hc = envision4d_train::batch::HostClip::from_clip(
-        &envision4d_train::data::open_dataset(&c.data, &c.model, &data).unwrap().load(0).unwrap(),
+        &envision4d_train::data::open_dataset(&c.data, &c.model, &data)
+            .unwrap()
+            .load(0)
+            .unwrap(),
     )
     .unwrap();
-    let batch = envision4d_train::batch::Batch::from_clips(&[hc.clone()], 4, true, &device).unwrap();
+    let batch =
+        envision4d_train::batch::Batch::from_clips(&[hc.clone()], 4, true, &device).unwrap();
     let mut totals = vec![];
     for _ in 0..6 {
         let r = t.train_step(&batch).unwrap();
         assert_eq!(r.outcome, StepOutcome::Applied);
         totals.push(r.total);
     }
-    assert!(totals[5] < totals[0], "backbone loss did not decrease: {totals:?}");
+    assert!(
+        totals[5] < totals[0],
+        "backbone loss did not decrease: {totals:?}"
+    );
     assert_eq!(flat_params(&t.model.gs_head), gs_before);
     let ckpt = tmp.path().join("backbone.safetensors");
     envision4d_model::checkpoint::save_checkpoint(&t.model, &c.model, &ckpt).unwrap();
@@ -138,16 +185,26 @@ fn backbone_stage_then_teacher() {
     // Ablation variants start from the same stage-1 weights: linear velocity keeps its own
     // 6-channel motion head, post-layer keeps every weight.
     for (motion, placement) in [
-        (envision4d_model::config::MotionModel::LinearVelocity, envision4d_model::config::TemporalPlacement::InLayer),
-        (envision4d_model::config::MotionModel::Lifting, envision4d_model::config::TemporalPlacement::PostLayer),
+        (
+            envision4d_model::config::MotionModel::LinearVelocity,
+            envision4d_model::config::TemporalPlacement::InLayer,
+        ),
+        (
+            envision4d_model::config::MotionModel::Lifting,
+            envision4d_model::config::TemporalPlacement::PostLayer,
+        ),
     ] {
         let mut v = c.clone();
         v.stage = Stage::Envision4d;
         v.init_checkpoint = Some(ckpt.clone());
         v.model.motion_model = motion;
         v.model.temporal_attention = placement;
-        let m = envision4d_train::step::build_model(&v, &device).expect("variant initialises from stage 1");
-        assert_eq!(flat_params(&m.aggregator.frame_blocks), flat_params(&t.model.aggregator.frame_blocks));
+        let m = envision4d_train::step::build_model(&v, &device)
+            .expect("variant initialises from stage 1");
+        assert_eq!(
+            flat_params(&m.aggregator.frame_blocks),
+            flat_params(&t.model.aggregator.frame_blocks)
+        );
         assert_eq!(flat_params(&m.depth_head), flat_params(&t.model.depth_head));
         assert_eq!(m.aggregator.placement, placement);
     }
@@ -178,12 +235,20 @@ fn data_parallel_gradients_equal_single_device_gradients() {
     c.optim.batch_size = 2;
     c.progressive.warmup_iterations = 0;
     let clips = [crate::common::synth_clip(3), crate::common::synth_clip(9)];
-    let sky = |c: &envision4d_train::batch::HostClip| c.depths[0].iter().filter(|d| **d == 0.0).count();
-    assert_ne!(sky(&clips[0]), sky(&clips[1]), "pick clips whose sky fractions differ");
+    let sky =
+        |c: &envision4d_train::batch::HostClip| c.depths[0].iter().filter(|d| **d == 0.0).count();
+    assert_ne!(
+        sky(&clips[0]),
+        sky(&clips[1]),
+        "pick clips whose sky fractions differ"
+    );
     let whole = envision4d_train::batch::Batch::from_clips(&clips, 2, true, &device).unwrap();
     let shards: Vec<_> = clips
         .iter()
-        .map(|c| envision4d_train::batch::Batch::from_clips(std::slice::from_ref(c), 2, true, &device).unwrap())
+        .map(|c| {
+            envision4d_train::batch::Batch::from_clips(std::slice::from_ref(c), 2, true, &device)
+                .unwrap()
+        })
         .collect();
     let mut t = Trainer::new(c, &device).unwrap();
     let single = {
@@ -211,5 +276,10 @@ fn data_parallel_gradients_equal_single_device_gradients() {
     let mut cmp = Cmp(&single, &par, 0.0, 0.0, 0);
     t.model.visit(&mut cmp);
     assert!(cmp.4 > 100, "only {} gradients compared", cmp.4);
-    assert!(cmp.2 <= 1e-4 * cmp.3, "gradients differ by {} (largest {})", cmp.2, cmp.3);
+    assert!(
+        cmp.2 <= 1e-4 * cmp.3,
+        "gradients differ by {} (largest {})",
+        cmp.2,
+        cmp.3
+    );
 }

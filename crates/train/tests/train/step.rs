@@ -143,7 +143,6 @@ fn smoke_loss_decreases() {
     );
 }
 
-
 /// Guards the static warm-up: during geometric warm-up no Gaussian is moved, so the motion
 /// head gets no gradient (it once learned to push the other frames' Gaussians out of view,
 /// leaving the first self-exclusive renders empty); after warm-up it does.
