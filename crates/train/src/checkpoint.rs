@@ -4,7 +4,7 @@
 //! name and renamed into place, so a crash never leaves a half checkpoint under a real name;
 //! only the newest `keep` survive.
 
-use crate::error::{Result, TrainError};
+use crate::error::{io, Result, TrainError};
 use crate::step::Trainer;
 use burn::module::{Module, ModuleMapper, ModuleVisitor, Param, ParamId};
 use burn::optim::OptimizerRecord;
@@ -35,13 +35,6 @@ pub struct RunState {
     /// The run's config as TOML with `optim.iterations` and `[run]` normalised away (what a
     /// resume must match).
     pub config: String,
-}
-
-fn io(path: &Path) -> impl FnOnce(std::io::Error) -> TrainError + '_ {
-    move |source| TrainError::Io {
-        path: path.to_path_buf(),
-        source,
-    }
 }
 
 /// The checkpoint directory of `step` under `root` (= `out_dir/checkpoints`).

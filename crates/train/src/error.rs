@@ -53,3 +53,11 @@ impl TrainError {
 }
 
 pub type Result<T> = std::result::Result<T, TrainError>;
+
+/// Maps an I/O error on `path` to [`TrainError::Io`] naming the path (`.map_err(io(p))`).
+pub fn io(path: &std::path::Path) -> impl FnOnce(std::io::Error) -> TrainError + '_ {
+    move |source| TrainError::Io {
+        path: path.to_path_buf(),
+        source,
+    }
+}

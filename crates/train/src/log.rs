@@ -1,7 +1,7 @@
 //! The run's JSONL log: one JSON object per logged step, validation and checkpoint. On
 //! resume, records at or after the resumed step are dropped so the log continues exactly.
 
-use crate::error::{Result, TrainError};
+use crate::error::{io, Result, TrainError};
 use crate::step::{StepOutcome, StepReport};
 use crate::validate::ValReport;
 use serde_json::{json, Value};
@@ -11,13 +11,6 @@ use std::path::{Path, PathBuf};
 pub struct JsonlLog {
     path: PathBuf,
     file: std::fs::File,
-}
-
-fn io(path: &Path) -> impl FnOnce(std::io::Error) -> TrainError + '_ {
-    move |source| TrainError::Io {
-        path: path.to_path_buf(),
-        source,
-    }
 }
 
 /// JSON has no NaN: non-finite numbers are written as null.

@@ -118,10 +118,7 @@ pub fn run(
             None
         }
     };
-    std::fs::create_dir_all(&out).map_err(|source| TrainError::Io {
-        path: out.clone(),
-        source,
-    })?;
+    std::fs::create_dir_all(&out).map_err(crate::error::io(&out))?;
     envision4d_data::atomic::write_bytes(&config_path, cfg.to_toml().as_bytes())
         .map_err(|e| TrainError::Batch(e.to_string()))?;
 

@@ -6,18 +6,14 @@ use crate::backend_choice::BackendChoice;
 use crate::eval_cmd::shared::backend_name;
 use envision4d_data::synth::SynthConfig;
 use envision4d_model::ModelConfig;
+use envision4d_train::eval::markdown::opt;
 use envision4d_train::eval::{ClipMetrics, Method, MethodScore, Report};
 use std::fmt::Write;
 use std::path::{Path, PathBuf};
 
 /// Text for a number that is not available (e.g. pose errors without ground-truth poses).
-const NA: &str = "n/a";
 /// Heading of the path list; each following line is `  label: path`.
 pub const WROTE: &str = "wrote:";
-
-fn opt(v: Option<f64>, digits: usize) -> String {
-    v.map_or(NA.to_string(), |v| format!("{v:.digits$}"))
-}
 
 /// One line: the checkpoint, the clip and how to generate the same clip again.
 pub fn header(

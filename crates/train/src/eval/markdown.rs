@@ -7,9 +7,10 @@ use crate::eval::sweep::SweepPoint;
 use std::fmt::Write;
 
 /// Text for a missing value.
-const NA: &str = "n/a";
+pub const NA: &str = "n/a";
 
-fn opt(v: Option<f64>, digits: usize) -> String {
+/// A value with `digits` decimals, or [`NA`] when it is missing (no weights, no truth).
+pub fn opt(v: Option<f64>, digits: usize) -> String {
     v.map_or(NA.to_string(), |v| format!("{v:.digits$}"))
 }
 
