@@ -66,6 +66,11 @@ pub struct EvalArgs {
     /// Backends of the sweep's backend knob (comma-separated; default: only --backend).
     #[arg(long, value_enum, value_delimiter = ',')]
     sweep_backends: Vec<BackendChoice>,
+    /// Score every window of T_c + T_f frames that starts a multiple of S frames into a clip,
+    /// each as its own sample (`clip@start`). Default: the config's data.stride, or 1 with
+    /// --data alone; a clip of exactly T_c + T_f frames has one window whatever S is.
+    #[arg(long, value_parser = clap::value_parser!(u64).range(1..))]
+    stride: Option<u64>,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -170,6 +175,9 @@ fn resolve(args: &EvalArgs) -> Result<Setup> {
     };
     if let Some(root) = &args.data {
         data.root = root.clone();
+    }
+    if let Some(stride) = args.stride {
+        data.stride = stride as usize;
     }
     if !data.root.is_dir() {
         return Err(InputError(format!("{}: data folder not found", data.root.display())).into());

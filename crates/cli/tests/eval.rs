@@ -187,6 +187,69 @@ fn eval_writes_documented_outputs() {
     }
 }
 
+/// Guards `--stride`: a clip longer than T_c + T_f is scored once per window (`clip@start`,
+/// starts a multiple of the stride), not only on its first frames, so bends and late events
+/// in long held-out clips count.
+#[test]
+fn stride_scores_every_window_of_a_long_clip() {
+    let dir = tempfile::tempdir().unwrap();
+    let ckpt = checkpoint(dir.path());
+    let data = dir.path().join("long");
+    let o = envision4d(&[
+        "synth",
+        "--out",
+        s(&data),
+        "--clips",
+        "1",
+        "--frames",
+        "7",
+        "--size",
+        SIZE,
+        "--supersample",
+        "1",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    for (stride, want) in [("1", vec![0, 1, 2, 3]), ("2", vec![0, 2])] {
+        let out = dir.path().join(format!("eval-{stride}"));
+        let o = envision4d(&[
+            "eval",
+            "--checkpoint",
+            s(&ckpt),
+            "--data",
+            s(&data),
+            "--out",
+            s(&out),
+            "--stride",
+            stride,
+        ]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let json: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(out.join("metrics.json")).unwrap()).unwrap();
+        let names: Vec<String> = json["clips"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|c| c["clip"].as_str().unwrap().to_string())
+            .collect();
+        let want: Vec<String> = want.iter().map(|k| format!("clip_000000@{k}")).collect();
+        assert_eq!(names, want, "--stride {stride}");
+    }
+    let o = envision4d(&[
+        "eval",
+        "--checkpoint",
+        s(&ckpt),
+        "--data",
+        s(&data),
+        "--stride",
+        "0",
+    ]);
+    assert_eq!(
+        o.status.code(),
+        Some(2),
+        "--stride 0 must be refused by the parser"
+    );
+}
+
 fn assert_input_error(o: &Output, path: &Path) {
     let stderr = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(2), "{stderr}");

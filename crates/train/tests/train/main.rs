@@ -3,6 +3,7 @@
 mod common;
 mod config;
 mod eval;
+mod pose;
 mod run;
 mod schedule;
 mod step;
