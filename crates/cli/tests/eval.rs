@@ -223,6 +223,9 @@ fn stride_scores_every_window_of_a_long_clip() {
             stride,
         ]);
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let stdout = String::from_utf8_lossy(&o.stdout);
+        let windows = format!("mean over {} windows of 1 clip ", want.len());
+        assert!(stdout.contains(&windows), "{stdout}");
         let json: serde_json::Value =
             serde_json::from_slice(&std::fs::read(out.join("metrics.json")).unwrap()).unwrap();
         let names: Vec<String> = json["clips"]

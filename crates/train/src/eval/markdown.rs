@@ -232,10 +232,26 @@ pub fn summary(report: &Report) -> String {
     let Some(mean) = &report.mean else {
         return "no clip was evaluated\n".into();
     };
+    // Windows of one clip (`clip@start`, `eval --stride`) are not independent clips.
+    let clips: std::collections::BTreeSet<&str> = report
+        .clips
+        .iter()
+        .map(|c| c.clip.split('@').next().unwrap_or(&c.clip))
+        .collect();
+    let samples = if clips.len() == report.clips_evaluated {
+        format!("{} clips", report.clips_evaluated)
+    } else {
+        let plural = if clips.len() == 1 { "" } else { "s" };
+        format!(
+            "{} windows of {} clip{plural}",
+            report.clips_evaluated,
+            clips.len()
+        )
+    };
     let _ = writeln!(
         s,
-        "mean over {} clips (future frames, T_f = {}):",
-        report.clips_evaluated, report.future_frames
+        "mean over {samples} (future frames, T_f = {}):",
+        report.future_frames
     );
     for m in &mean.methods {
         let _ = writeln!(
