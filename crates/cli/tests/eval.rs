@@ -47,15 +47,20 @@ fn checkpoint(dir: &Path) -> PathBuf {
 }
 
 fn synth_data(dir: &Path) -> PathBuf {
-    let data = dir.join("heldout");
+    synth_clips(dir, "heldout", CLIPS, FRAMES)
+}
+
+/// `clips` synthetic clips of `frames` frames at the tiny size in `dir/name`.
+fn synth_clips(dir: &Path, name: &str, clips: &str, frames: &str) -> PathBuf {
+    let data = dir.join(name);
     let o = envision4d(&[
         "synth",
         "--out",
         s(&data),
         "--clips",
-        CLIPS,
+        clips,
         "--frames",
-        FRAMES,
+        frames,
         "--size",
         SIZE,
         "--supersample",
@@ -63,6 +68,21 @@ fn synth_data(dir: &Path) -> PathBuf {
     ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     data
+}
+
+/// `envision4d eval` of `ckpt` on `data` into `out`, with `extra` arguments.
+fn eval(ckpt: &Path, data: &Path, out: &Path, extra: &[&str]) -> Output {
+    let mut args = vec![
+        "eval",
+        "--checkpoint",
+        s(ckpt),
+        "--data",
+        s(data),
+        "--out",
+        s(out),
+    ];
+    args.extend_from_slice(extra);
+    envision4d(&args)
 }
 
 /// Every key path of a JSON value (`a.b[].c`); `mean.*` is folded onto `clips[].*`, and
@@ -123,18 +143,7 @@ fn eval_writes_documented_outputs() {
         synth_data(dir.path()),
         dir.path().join("eval"),
     );
-    let o = envision4d(&[
-        "eval",
-        "--checkpoint",
-        s(&ckpt),
-        "--data",
-        s(&data),
-        "--out",
-        s(&out),
-        "--sweep",
-        "--max-clips",
-        "1",
-    ]);
+    let o = eval(&ckpt, &data, &out, &["--sweep", "--max-clips", "1"]);
     let stdout = String::from_utf8_lossy(&o.stdout);
     assert!(
         o.status.success(),
@@ -194,34 +203,10 @@ fn eval_writes_documented_outputs() {
 fn stride_scores_every_window_of_a_long_clip() {
     let dir = tempfile::tempdir().unwrap();
     let ckpt = checkpoint(dir.path());
-    let data = dir.path().join("long");
-    let o = envision4d(&[
-        "synth",
-        "--out",
-        s(&data),
-        "--clips",
-        "1",
-        "--frames",
-        "7",
-        "--size",
-        SIZE,
-        "--supersample",
-        "1",
-    ]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let data = synth_clips(dir.path(), "long", "1", "7");
     for (stride, want) in [("1", vec![0, 1, 2, 3]), ("2", vec![0, 2])] {
         let out = dir.path().join(format!("eval-{stride}"));
-        let o = envision4d(&[
-            "eval",
-            "--checkpoint",
-            s(&ckpt),
-            "--data",
-            s(&data),
-            "--out",
-            s(&out),
-            "--stride",
-            stride,
-        ]);
+        let o = eval(&ckpt, &data, &out, &["--stride", stride]);
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
         let stdout = String::from_utf8_lossy(&o.stdout);
         let windows = format!("mean over {} windows of 1 clip ", want.len());
@@ -237,15 +222,7 @@ fn stride_scores_every_window_of_a_long_clip() {
         let want: Vec<String> = want.iter().map(|k| format!("clip_000000@{k}")).collect();
         assert_eq!(names, want, "--stride {stride}");
     }
-    let o = envision4d(&[
-        "eval",
-        "--checkpoint",
-        s(&ckpt),
-        "--data",
-        s(&data),
-        "--stride",
-        "0",
-    ]);
+    let o = eval(&ckpt, &data, &dir.path().join("eval-0"), &["--stride", "0"]);
     assert_eq!(
         o.status.code(),
         Some(2),
@@ -286,26 +263,10 @@ fn bad_data_folder_is_a_clear_input_error() {
     let ckpt = checkpoint(dir.path());
     let out = dir.path().join("eval");
     let missing = dir.path().join("no-such-data");
-    let o = envision4d(&[
-        "eval",
-        "--checkpoint",
-        s(&ckpt),
-        "--data",
-        s(&missing),
-        "--out",
-        s(&out),
-    ]);
+    let o = eval(&ckpt, &missing, &out, &[]);
     assert_input_error(&o, &missing);
     let empty = dir.path().join("empty");
     std::fs::create_dir(&empty).unwrap();
-    let o = envision4d(&[
-        "eval",
-        "--checkpoint",
-        s(&ckpt),
-        "--data",
-        s(&empty),
-        "--out",
-        s(&out),
-    ]);
+    let o = eval(&ckpt, &empty, &out, &[]);
     assert_input_error(&o, &empty);
 }
