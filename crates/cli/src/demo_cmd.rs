@@ -55,7 +55,7 @@ pub struct DemoArgs {
     #[arg(long)]
     seed: Option<u64>,
     /// Scene of the clip: urban, static, sharp-turn, fast-approach, far-small-movers,
-    /// crossing-truck, low-light.
+    /// crossing-truck, low-light, winding.
     #[arg(long, default_value = "urban", value_parser = parse_preset)]
     preset: Preset,
     /// Output folder: clip/, metrics.json, metrics.md, plots, render/ (files in it are
@@ -197,6 +197,7 @@ pub fn run(args: DemoArgs) -> Result<()> {
         layout: DataLayout::Synth,
         root: clip_root.clone(),
         stride: 1,
+        augment: Default::default(),
     };
     let dataset = envision4d_train::data::open_dataset(&data, cfg, &clip_root)?;
     // Window 0 is the clip's first T_c + T_f frames (the only window the demo writes).

@@ -168,6 +168,7 @@ fn resolve(args: &EvalArgs) -> Result<Setup> {
                     layout: DataLayout::Synth,
                     root,
                     stride: 1,
+                    augment: Default::default(),
                 },
                 0,
             )

@@ -202,6 +202,22 @@ pub struct DataConfig {
     /// Frames between consecutive clip windows.
     #[serde(default = "one")]
     pub stride: usize,
+    /// Playback augmentation of training windows (`[data.augment]`); off by default.
+    #[serde(default)]
+    pub augment: Augment,
+}
+
+/// How often a training window is played other than forwards. Both take away the shortcut
+/// of reading a camera's motion off one frame's appearance (scene type → typical speed):
+/// the same frames then come with the opposite motion, or with none.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct Augment {
+    /// Fraction of windows played backwards: frames, cameras and depth reversed together.
+    pub reverse: f64,
+    /// Fraction of windows frozen on their first frame: every frame, camera and depth map is
+    /// frame 0's (the ego stands still and so does the world).
+    pub hold: f64,
 }
 
 fn one() -> usize {

@@ -7,10 +7,12 @@
 //! - [`step`]: the training step of either stage (self-exclusive rendering, losses, Adam).
 //! - [`backbone`]: the backbone stage's supervised loss and the frozen teacher.
 //! - [`infer`]: forward + safe cameras + adapted Gaussians, shared with eval and render.
-//! - [`data`]: datasets and splits of a config, clips as host buffers.
+//! - [`data`]: datasets and splits of a config, clips as host buffers; [`augment`]: playback
+//!   augmentation of training windows.
 //! - [`run`]: the run loop (log, validation, checkpoints, resume, NaN guard), [`log`],
 //!   [`checkpoint`], [`validate`].
 
+pub mod augment;
 pub mod backbone;
 pub mod batch;
 pub mod checkpoint;

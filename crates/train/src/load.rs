@@ -222,6 +222,22 @@ pub fn validate(cfg: &TrainConfig) -> Result<()> {
     if cfg.data.stride == 0 {
         return Err(TrainError::invalid("data.stride", 0, "must be >= 1"));
     }
+    let a = &cfg.data.augment;
+    for (key, v) in [
+        ("data.augment.reverse", a.reverse),
+        ("data.augment.hold", a.hold),
+    ] {
+        if !(0.0..=1.0).contains(&v) {
+            return Err(TrainError::invalid(key, v, "must be a fraction in [0, 1]"));
+        }
+    }
+    if a.reverse + a.hold > 1.0 {
+        return Err(TrainError::invalid(
+            "data.augment",
+            format!("reverse = {}, hold = {}", a.reverse, a.hold),
+            "the two fractions must add up to at most 1",
+        ));
+    }
     if cfg.stage == Stage::Backbone {
         // Stage 1 trains exactly VGGT's parts; freezing them would silently train nothing
         // (the paper's default freeze list is stage 2's).

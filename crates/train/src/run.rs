@@ -2,6 +2,7 @@
 //! NaN guard. Progress display is the caller's ([`Observer`]); everything a run needs to be
 //! continued or audited is on disk under `run.out_dir`.
 
+use crate::augment;
 use crate::batch::{Batch, HostClip};
 use crate::checkpoint::{self, MODEL_FILE};
 use crate::config::{Stage, Teacher, TrainConfig};
@@ -198,10 +199,13 @@ pub fn run(
         let b = cfg.optim.batch_size as u64;
         let clips = (0..b)
             .map(|i| {
-                host_clip(
+                let k = step * b + i;
+                let mut clip = host_clip(
                     &dataset,
-                    sample_index(&train, cfg.seed, step * b + i, &mut order_cache),
-                )
+                    sample_index(&train, cfg.seed, k, &mut order_cache),
+                )?;
+                augment::apply(&mut clip, augment::playback(&cfg.data.augment, cfg.seed, k));
+                Ok(clip)
             })
             .collect::<Result<Vec<_>>>()?;
         let t0 = Instant::now();

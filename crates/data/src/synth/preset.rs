@@ -25,10 +25,14 @@ pub enum Preset {
     CrossingTruck,
     /// Dusk: low sun, dark sky, dim ambient light.
     LowLight,
+    /// A long bend of random radius (25-70 m, either side) the ego is already in at the
+    /// first frame: every window turns, 0.4-2° per frame. The other presets turn only in
+    /// a few windows, so their pose labels teach "no rotation" almost everywhere.
+    Winding,
 }
 
 impl Preset {
-    pub const ALL: [Preset; 7] = [
+    pub const ALL: [Preset; 8] = [
         Preset::Urban,
         Preset::Static,
         Preset::SharpTurn,
@@ -36,6 +40,7 @@ impl Preset {
         Preset::FarSmallMovers,
         Preset::CrossingTruck,
         Preset::LowLight,
+        Preset::Winding,
     ];
     pub fn name(&self) -> &'static str {
         match self {
@@ -46,6 +51,7 @@ impl Preset {
             Preset::FarSmallMovers => "far-small-movers",
             Preset::CrossingTruck => "crossing-truck",
             Preset::LowLight => "low-light",
+            Preset::Winding => "winding",
         }
     }
     pub fn from_name(name: &str) -> Option<Preset> {
@@ -57,6 +63,9 @@ impl Preset {
 pub const FRAME_INTERVAL_S: f64 = 0.1;
 const CAMERA_HEIGHT: f64 = 1.6;
 const CAMERA_PITCH: f64 = 0.03;
+/// Radius range of the winding preset's bend; with its 5-9 m/s ego that is a yaw rate of
+/// 0.4-2° per 10 Hz frame.
+const WINDING_RADIUS_M: (f64, f64) = (25.0, 70.0);
 /// Scenery this far behind and beyond the ego's path.
 const SCENERY_BEHIND: f64 = 40.0;
 const SCENERY_AHEAD: f64 = 160.0;
@@ -176,7 +185,7 @@ fn agents(preset: Preset, road: &Road, rng: &mut Rng, ego_v: f64) -> Vec<Object>
     };
     match preset {
         Preset::Static => {}
-        Preset::Urban | Preset::LowLight => urban(rng, &mut out, 0.0),
+        Preset::Urban | Preset::LowLight | Preset::Winding => urban(rng, &mut out, 0.0),
         Preset::SharpTurn => {
             let oncoming = lane(
                 rng.range(25.0, 35.0),
@@ -290,6 +299,18 @@ pub fn build_world(preset: Preset, rng: &mut Rng, frames: usize) -> World {
         ),
         Preset::FarSmallMovers => (30.0, 40.0, left / rng.range(200.0, 400.0), 5.0, 0.0),
         Preset::CrossingTruck => (40.0, 30.0, left / 300.0, 7.0, rng.range(-2.0, -1.0)),
+        Preset::Winding => {
+            let radius = rng.range(WINDING_RADIUS_M.0, WINDING_RADIUS_M.1);
+            (
+                rng.range(-12.0, -2.0),
+                // A quarter circle at most: a longer arc would bring the scenery placed
+                // along the exit straight back across the road already driven.
+                radius * FRAC_PI_2,
+                left / radius,
+                rng.range(5.0, 9.0),
+                rng.range(-0.5, 0.5),
+            )
+        }
         _ => (
             rng.range(0.0, 20.0),
             60.0,

@@ -1,5 +1,6 @@
 //! Integration tests of envision4d-train (kept small: CI has 2 cores).
 
+mod augment;
 mod common;
 mod config;
 mod eval;
