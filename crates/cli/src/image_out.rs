@@ -105,6 +105,9 @@ pub fn write_gray(path: &Path, width: usize, height: usize, values: &[f32]) -> a
                 .with_pixel_fn(|pos: Vec2<usize>| (values[pos.y() * width + pos.x()],));
             Image::from_channels((width, height), channels)
                 .write()
+                // In order: parallel compression writes the chunks as they finish, so the same
+                // image gave different bytes from run to run.
+                .non_parallel()
                 .to_file(tmp)
                 .context("EXR encoding failed")
         }

@@ -33,6 +33,9 @@ pub fn write_gray(path: &Path, map: &FloatMap) -> Result<()> {
             .with_pixel_fn(|p: Vec2<usize>| (m.get(p.y(), p.x(), 0),));
         Image::from_channels((m.width, m.height), channels)
             .write()
+            // In order: parallel compression writes the chunks as they finish, so the same
+            // image gave different bytes from run to run.
+            .non_parallel()
             .to_file(tmp)
             .map_err(|e| e.to_string())
     })
@@ -56,6 +59,9 @@ pub fn write_xyz(path: &Path, map: &FloatMap) -> Result<()> {
             });
         Image::from_channels((m.width, m.height), channels)
             .write()
+            // In order: parallel compression writes the chunks as they finish, so the same
+            // image gave different bytes from run to run.
+            .non_parallel()
             .to_file(tmp)
             .map_err(|e| e.to_string())
     })

@@ -30,8 +30,8 @@ pub use camera_auc::{
 pub use crop::EvalCrop;
 pub use depth::{depth_rmse, AlignmentScope, DepthAlignment, DepthRmse};
 pub use distill::{
-    camera_distill, depth_distill, distill, DistillTerms, DistillWeights, CAMERA_DISTILL_WEIGHT,
-    DEPTH_DISTILL_WEIGHT,
+    camera_distill, camera_distill_weighted, depth_distill, distill, DistillTerms, DistillWeights,
+    CAMERA_DISTILL_WEIGHT, DEPTH_DISTILL_WEIGHT,
 };
 pub use error::{LossError, Result};
 pub use evaluate::{evaluate_images, ImageMetrics};

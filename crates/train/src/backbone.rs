@@ -2,10 +2,11 @@
 //! frozen-backbone teacher of the Envision4D stage (paper §3.4 self-distillation).
 
 use crate::batch::{Batch, TeacherTargets};
+use crate::config::LossConfig;
 use crate::error::{Result, TrainError};
 use burn::module::Module;
 use burn::tensor::Tensor;
-use envision4d_losses::camera_distill;
+use envision4d_losses::camera_distill_weighted;
 use envision4d_model::checkpoint::{load_checkpoint, CheckpointKind};
 use envision4d_model::model::VggtDepth;
 use envision4d_model::{Envision4d, ModelConfig};
@@ -43,8 +44,7 @@ pub fn masked_l1(pred: Tensor<5>, target: Tensor<5>) -> Tensor<1> {
 pub fn backbone_loss(
     model: &Envision4d,
     batch: &Batch,
-    lambda_cam: f64,
-    lambda_depth: f64,
+    loss: &LossConfig,
 ) -> Result<BackboneTerms> {
     let t = batch.teacher.as_ref().ok_or_else(|| {
         TrainError::Batch("stage \"backbone\" needs ground-truth cameras and depth".into())
@@ -64,7 +64,8 @@ pub fn backbone_loss(
     let wsum: f64 = weights.iter().sum();
     let mut camera: Option<Tensor<1>> = None;
     for (p, w) in out.pose_enc_iters.iter().zip(&weights) {
-        let term = camera_distill(p.clone(), t.pose_enc.clone())? * (w / wsum);
+        let term = camera_distill_weighted(p.clone(), t.pose_enc.clone(), loss.rotation_weight)?
+            * (w / wsum);
         camera = Some(match camera {
             None => term,
             Some(c) => c + term,
@@ -79,7 +80,7 @@ pub fn backbone_loss(
         return Err(TrainError::NonFinite("backbone loss"));
     }
     Ok(BackboneTerms {
-        total: camera.clone() * lambda_cam + depth.clone() * lambda_depth,
+        total: camera.clone() * loss.lambda_cam + depth.clone() * loss.lambda_depth,
         camera,
         depth,
     })

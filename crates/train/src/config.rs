@@ -96,6 +96,9 @@ pub struct LossConfig {
     pub lambda_lpips: f64,
     pub lambda_cam: f64,
     pub lambda_depth: f64,
+    /// How many times the quaternion entries of the pose encodings count in the camera
+    /// loss (translation and FoV count once); 1 is the paper's plain L1.
+    pub rotation_weight: f64,
     /// LPIPS (VGG) weights in safetensors; required when `lambda_lpips > 0`.
     pub lpips_weights: Option<PathBuf>,
 }
@@ -106,6 +109,7 @@ impl Default for LossConfig {
             lambda_lpips: envision4d_losses::LPIPS_LOSS_WEIGHT,
             lambda_cam: envision4d_losses::CAMERA_DISTILL_WEIGHT,
             lambda_depth: envision4d_losses::DEPTH_DISTILL_WEIGHT,
+            rotation_weight: 1.0,
             lpips_weights: None,
         }
     }

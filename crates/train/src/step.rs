@@ -15,7 +15,7 @@ use crate::schedule::{Phase, Schedule};
 use burn::grad_clipping::GradientClippingConfig;
 use burn::optim::{AdamConfig, GradientsParams, ModuleOptimizer};
 use burn::tensor::{Device, Tensor};
-use envision4d_losses::{camera_distill, LpipsNet, LpipsStatus, RgbLoss};
+use envision4d_losses::{camera_distill_weighted, LpipsNet, LpipsStatus, RgbLoss};
 use envision4d_model::adapter::{AdaptedGaussians, Exclusion};
 use envision4d_model::Envision4d;
 use envision4d_splat::{render, Cameras, RasterConfig};
@@ -222,7 +222,7 @@ impl Trainer {
         match self.config.stage {
             Stage::Backbone => {
                 let l = &self.config.loss;
-                let t = backbone_loss(model, batch, l.lambda_cam, l.lambda_depth)?;
+                let t = backbone_loss(model, batch, l)?;
                 Ok(LossTerms {
                     total: t.total,
                     rgb: Tensor::zeros([1], &batch.images.device()),
@@ -324,7 +324,11 @@ impl Trainer {
             }
         };
         if let Some(t) = labels {
-            let cam = camera_distill(bb.pose_enc(), t.pose_enc.detach())?;
+            let cam = camera_distill_weighted(
+                bb.pose_enc(),
+                t.pose_enc.detach(),
+                self.config.loss.rotation_weight,
+            )?;
             let d = pred
                 .depth
                 .clone()

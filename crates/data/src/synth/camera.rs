@@ -33,6 +33,7 @@ impl Camera {
     /// The camera of `world` at time `t_s` seconds.
     pub fn at(world: &World, t_s: f64, width: usize, height: usize) -> Camera {
         let Pose { position, yaw } = world.ego.lane.pose(&world.road, t_s);
+        let yaw = yaw + world.ego.look.yaw(t_s);
         let p = world.ego.pitch;
         let forward = Vec3::new(yaw.cos() * p.cos(), yaw.sin() * p.cos(), -p.sin());
         let right = Vec3::new(yaw.sin(), -yaw.cos(), 0.0);

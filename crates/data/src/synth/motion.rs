@@ -159,4 +159,25 @@ pub struct EgoMotion {
     pub camera_height: f64,
     /// Downward pitch of the camera, radians.
     pub pitch: f64,
+    /// The camera turning on its mount, added to the vehicle's heading.
+    pub look: LookAround,
+}
+
+/// A camera that pans left and right on its mount: yaw `amplitude·sin(omega·t + phase)`
+/// (radians) on top of the vehicle's heading. Zero amplitude is a fixed mount.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct LookAround {
+    pub amplitude: f64,
+    pub omega: f64,
+    pub phase: f64,
+}
+
+impl LookAround {
+    /// Extra camera yaw at `t_s` seconds, radians.
+    pub fn yaw(&self, t_s: f64) -> f64 {
+        if self.amplitude == 0.0 {
+            return 0.0;
+        }
+        self.amplitude * (self.omega * t_s + self.phase).sin()
+    }
 }

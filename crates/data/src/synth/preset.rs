@@ -1,6 +1,6 @@
 //! Difficulty presets: each picks the road, the ego speed profile, the agents and the light.
 
-use super::motion::{EgoMotion, Motion};
+use super::motion::{EgoMotion, LookAround, Motion};
 use super::road::{right_lane, Road, HALF_WIDTH, KERB_WIDTH};
 use super::world::{
     car, pedestrian, road_pose, scenery, truck, Kind, Lighting, Object, World, CAR_COLOURS,
@@ -29,10 +29,14 @@ pub enum Preset {
     /// first frame: every window turns, 0.4-2° per frame. The other presets turn only in
     /// a few windows, so their pose labels teach "no rotation" almost everywhere.
     Winding,
+    /// The urban scene seen by a camera panning on its mount (±2-6°, period 1.2-2.5 s): the
+    /// yaw rate changes from window to window whatever the road does, so no single frame's
+    /// look tells it.
+    LookAround,
 }
 
 impl Preset {
-    pub const ALL: [Preset; 8] = [
+    pub const ALL: [Preset; 9] = [
         Preset::Urban,
         Preset::Static,
         Preset::SharpTurn,
@@ -41,6 +45,7 @@ impl Preset {
         Preset::CrossingTruck,
         Preset::LowLight,
         Preset::Winding,
+        Preset::LookAround,
     ];
     pub fn name(&self) -> &'static str {
         match self {
@@ -52,6 +57,7 @@ impl Preset {
             Preset::CrossingTruck => "crossing-truck",
             Preset::LowLight => "low-light",
             Preset::Winding => "winding",
+            Preset::LookAround => "look-around",
         }
     }
     pub fn from_name(name: &str) -> Option<Preset> {
@@ -66,6 +72,10 @@ const CAMERA_PITCH: f64 = 0.03;
 /// Radius range of the winding preset's bend; with its 5-9 m/s ego that is a yaw rate of
 /// 0.4-2° per 10 Hz frame.
 const WINDING_RADIUS_M: (f64, f64) = (25.0, 70.0);
+/// Pan amplitude and period of the look-around preset: up to ~3° of yaw per frame, the
+/// size of the sharp-turn bends, so that the signal is a few pixels at 56x84.
+const LOOK_AMPLITUDE_DEG: (f64, f64) = (2.0, 6.0);
+const LOOK_PERIOD_S: (f64, f64) = (1.2, 2.5);
 /// Scenery this far behind and beyond the ego's path.
 const SCENERY_BEHIND: f64 = 40.0;
 const SCENERY_AHEAD: f64 = 160.0;
@@ -185,7 +195,9 @@ fn agents(preset: Preset, road: &Road, rng: &mut Rng, ego_v: f64) -> Vec<Object>
     };
     match preset {
         Preset::Static => {}
-        Preset::Urban | Preset::LowLight | Preset::Winding => urban(rng, &mut out, 0.0),
+        Preset::Urban | Preset::LowLight | Preset::Winding | Preset::LookAround => {
+            urban(rng, &mut out, 0.0)
+        }
         Preset::SharpTurn => {
             let oncoming = lane(
                 rng.range(25.0, 35.0),
@@ -328,6 +340,18 @@ pub fn build_world(preset: Preset, rng: &mut Rng, frames: usize) -> World {
         agent.track_id = (i + 1) as u16;
         objects.push(agent);
     }
+    let light = lighting(preset, rng);
+    // Drawn last, and only here, so every other preset's worlds stay byte-identical.
+    let look = match preset {
+        Preset::LookAround => LookAround {
+            amplitude: rng
+                .range(LOOK_AMPLITUDE_DEG.0, LOOK_AMPLITUDE_DEG.1)
+                .to_radians(),
+            omega: std::f64::consts::TAU / rng.range(LOOK_PERIOD_S.0, LOOK_PERIOD_S.1),
+            phase: rng.range(0.0, std::f64::consts::TAU),
+        },
+        _ => LookAround::default(),
+    };
     World {
         road,
         objects,
@@ -335,8 +359,9 @@ pub fn build_world(preset: Preset, rng: &mut Rng, frames: usize) -> World {
             lane: ego_lane,
             camera_height: CAMERA_HEIGHT,
             pitch: CAMERA_PITCH,
+            look,
         },
-        light: lighting(preset, rng),
+        light,
         dt: FRAME_INTERVAL_S,
     }
 }

@@ -73,3 +73,33 @@ fn evaluation_without_lpips_reports_none() {
     assert!(m.lpips.is_none());
     assert_eq!(m.psnr.len(), 1);
 }
+
+/// Guards the camera loss's rotation weight: at 1 it is exactly the paper's L1, and at w a
+/// difference in the quaternion entries alone costs w times as much while one in the
+/// translation alone costs the same; a negative or NaN weight is refused.
+#[test]
+fn rotation_weight_scales_only_the_quaternion_entries() {
+    use envision4d_losses::{camera_distill, camera_distill_weighted};
+    let device = Device::flex();
+    let value = |t: burn::tensor::Tensor<1>| t.into_data().iter::<f32>().next().unwrap();
+    let base: Vec<f64> = (0..18).map(|i| i as f64 * 0.1).collect();
+    let pose = |v: &[f64]| tensor::<3>(v, [1, 2, 9], &device, DType::F32);
+    let mut rot = base.clone();
+    rot[4] += 0.2; // quaternion y of frame 0
+    let mut trans = base.clone();
+    trans[11] += 0.2; // translation z of frame 1
+    let plain = value(camera_distill(pose(&rot), pose(&base)).unwrap());
+    assert_eq!(
+        plain,
+        value(camera_distill_weighted(pose(&rot), pose(&base), 1.0).unwrap())
+    );
+    let w = value(camera_distill_weighted(pose(&rot), pose(&base), 20.0).unwrap());
+    assert!((w - 20.0 * plain).abs() < 1e-6, "{w} vs 20 x {plain}");
+    let t1 = value(camera_distill(pose(&trans), pose(&base)).unwrap());
+    let t20 = value(camera_distill_weighted(pose(&trans), pose(&base), 20.0).unwrap());
+    assert!((t1 - t20).abs() < 1e-7, "{t1} vs {t20}");
+    for bad in [-1.0, f64::NAN] {
+        let err = camera_distill_weighted(pose(&rot), pose(&base), bad).unwrap_err();
+        assert!(err.to_string().contains("rotation weight"), "{err}");
+    }
+}
