@@ -43,14 +43,7 @@ pub struct DistillTerms {
 /// pose encodings (`absT_quaR_FoV`, `[..., 9]`, all frames of the clip; mean over frames and
 /// dims, model.md §3). The teacher is detached. Returns a scalar `[1]`.
 pub fn camera_distill<const D: usize>(pose: Tensor<D>, teacher: Tensor<D>) -> Result<Tensor<1>> {
-    let dims = pose.dims();
-    if D == 0 || dims[D - 1] != POSE_ENCODING_DIM {
-        return Err(LossError::BadShape {
-            what: "camera distillation pose",
-            expected: "[..., 9] (absT_quaR_FoV pose encodings)",
-            got: dims.to_vec(),
-        });
-    }
+    check_pose_shape(&pose)?;
     l1_mean("camera distillation", pose, teacher)
 }
 
@@ -73,14 +66,7 @@ pub fn camera_distill_weighted<const D: usize>(
             reason: format!("must be finite and >= 0, got {rotation_weight}"),
         });
     }
-    let dims = pose.dims();
-    if D == 0 || dims[D - 1] != POSE_ENCODING_DIM {
-        return Err(LossError::BadShape {
-            what: "camera distillation pose",
-            expected: "[..., 9] (absT_quaR_FoV pose encodings)",
-            got: dims.to_vec(),
-        });
-    }
+    check_pose_shape(&pose)?;
     crate::mse::check_same("camera distillation", "a non-empty tensor", &pose, &teacher)?;
     let w: Vec<f32> = (0..POSE_ENCODING_DIM)
         .map(|i| {
@@ -125,6 +111,19 @@ pub fn distill<const DP: usize, const DD: usize>(
         depth,
         total,
     })
+}
+
+/// Refuses anything but `[..., 9]` pose encodings.
+fn check_pose_shape<const D: usize>(pose: &Tensor<D>) -> Result<()> {
+    let dims = pose.dims();
+    if D == 0 || dims[D - 1] != POSE_ENCODING_DIM {
+        return Err(LossError::BadShape {
+            what: "camera distillation pose",
+            expected: "[..., 9] (absT_quaR_FoV pose encodings)",
+            got: dims.to_vec(),
+        });
+    }
+    Ok(())
 }
 
 /// Width of a pose encoding: translation 3, quaternion 4, FoV 2.
