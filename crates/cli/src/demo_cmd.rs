@@ -55,7 +55,7 @@ pub struct DemoArgs {
     #[arg(long)]
     seed: Option<u64>,
     /// Scene of the clip: urban, static, sharp-turn, fast-approach, far-small-movers,
-    /// crossing-truck, low-light, winding, look-around.
+    /// crossing-truck, low-light, winding, look-around, stopped-pan.
     #[arg(long, default_value = "urban", value_parser = parse_preset)]
     preset: Preset,
     /// Output folder: clip/, metrics.json, metrics.md, plots, render/ (files in it are

@@ -24,7 +24,7 @@ pub struct SynthArgs {
     #[arg(long, default_value = "350x518", value_parser = parse_size)]
     size: (usize, usize),
     /// urban, static, sharp-turn, fast-approach, far-small-movers, crossing-truck, low-light,
-    /// winding, look-around.
+    /// winding, look-around, stopped-pan.
     #[arg(long, default_value = "urban", value_parser = parse_preset)]
     preset: Preset,
     /// World seed: the same seed gives byte-identical files.

@@ -1,5 +1,5 @@
-//! The winding and look-around presets exist to put camera rotation into every training
-//! window; these tests hold them to that.
+//! The winding, look-around and stopped-pan presets exist to put camera rotation into every
+//! training window; these tests hold them to that.
 
 use envision4d_data::synth::{render_clip, Preset, SynthConfig};
 use envision4d_data::Mat4;
@@ -101,4 +101,26 @@ fn every_step_of_a_winding_clip_turns_one_way() {
         signs.contains(&1.0) && signs.contains(&-1.0),
         "8 seeds all bend the same way: {signs:?}"
     );
+}
+
+/// Guards a stopped-pan preset whose ego still drives: every camera centre of a clip is the
+/// first one, and the camera turns (only rotation is left to see).
+#[test]
+fn stopped_pan_only_rotates() {
+    for seed in 0..4 {
+        let cams = cameras(Preset::StoppedPan, seed);
+        let c0 = centre(&cams[0]);
+        for (k, m) in cams.iter().enumerate() {
+            let c = centre(m);
+            let d = (0..3).map(|i| (c[i] - c0[i]).powi(2)).sum::<f64>().sqrt();
+            assert!(d < 1e-9, "seed {seed}, frame {k}: the camera moved {d} m");
+        }
+        let max = yaw_steps_of(&cams)
+            .iter()
+            .fold(0.0f64, |m, y| m.max(y.abs()));
+        assert!(
+            (0.5..3.5).contains(&max),
+            "seed {seed}: largest pan step {max:.3}°"
+        );
+    }
 }

@@ -33,10 +33,13 @@ pub enum Preset {
     /// yaw rate changes from window to window whatever the road does, so no single frame's
     /// look tells it.
     LookAround,
+    /// The look-around camera on an ego that stands still (waiting at a junction): the
+    /// only camera motion is the pan, a pure rotation, and the translation is zero.
+    StoppedPan,
 }
 
 impl Preset {
-    pub const ALL: [Preset; 9] = [
+    pub const ALL: [Preset; 10] = [
         Preset::Urban,
         Preset::Static,
         Preset::SharpTurn,
@@ -46,6 +49,7 @@ impl Preset {
         Preset::LowLight,
         Preset::Winding,
         Preset::LookAround,
+        Preset::StoppedPan,
     ];
     pub fn name(&self) -> &'static str {
         match self {
@@ -58,6 +62,7 @@ impl Preset {
             Preset::LowLight => "low-light",
             Preset::Winding => "winding",
             Preset::LookAround => "look-around",
+            Preset::StoppedPan => "stopped-pan",
         }
     }
     pub fn from_name(name: &str) -> Option<Preset> {
@@ -195,9 +200,11 @@ fn agents(preset: Preset, road: &Road, rng: &mut Rng, ego_v: f64) -> Vec<Object>
     };
     match preset {
         Preset::Static => {}
-        Preset::Urban | Preset::LowLight | Preset::Winding | Preset::LookAround => {
-            urban(rng, &mut out, 0.0)
-        }
+        Preset::Urban
+        | Preset::LowLight
+        | Preset::Winding
+        | Preset::LookAround
+        | Preset::StoppedPan => urban(rng, &mut out, 0.0),
         Preset::SharpTurn => {
             let oncoming = lane(
                 rng.range(25.0, 35.0),
@@ -331,6 +338,11 @@ pub fn build_world(preset: Preset, rng: &mut Rng, frames: usize) -> World {
             rng.range(-1.5, 1.5),
         ),
     };
+    // Drawn like urban's (the same road for a seed), then parked.
+    let (ego_v, ego_a) = match preset {
+        Preset::StoppedPan => (0.0, 0.0),
+        _ => (ego_v, ego_a),
+    };
     let road = Road::with_bend(-SCENERY_BEHIND - 10.0, turn_at, turn_len, curvature);
     let ego_lane = lane(0.0, ego_v, ego_a, 1.0, right_lane(0), right_lane(0), 0.0);
     let duration = frames as f64 * FRAME_INTERVAL_S;
@@ -343,7 +355,7 @@ pub fn build_world(preset: Preset, rng: &mut Rng, frames: usize) -> World {
     let light = lighting(preset, rng);
     // Drawn last, and only here, so every other preset's worlds stay byte-identical.
     let look = match preset {
-        Preset::LookAround => LookAround {
+        Preset::LookAround | Preset::StoppedPan => LookAround {
             amplitude: rng
                 .range(LOOK_AMPLITUDE_DEG.0, LOOK_AMPLITUDE_DEG.1)
                 .to_radians(),
