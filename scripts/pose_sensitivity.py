@@ -14,6 +14,7 @@ far the predictions move when the second frame is replaced. A model that perceiv
 motion correlates with the truth *within* one preset (where the scene type cannot give the
 speed away), drives ~0 m on identical frames and backwards on reversed ones.
 """
+import argparse
 import json
 import math
 import os
@@ -66,15 +67,15 @@ def corr(xs, ys):
 
 
 def main(argv):
-    args = [a for a in argv if not a.startswith("--")]
-    opts = {argv[i][2:]: argv[i + 1] for i in range(len(argv) - 1) if argv[i].startswith("--")}
-    args = [a for a in args if a not in opts.values()]
-    if len(args) != 2:
-        sys.exit(__doc__)
-    ckpt, root = args
-    start = int(opts.get("start", 0))
-    binary = opts.get("bin", DEFAULT_BIN)
-    work = opts.get("work") or tempfile.mkdtemp(prefix="pose-sensitivity-")
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("ckpt", help="our safetensors checkpoint")
+    parser.add_argument("root", help="folder of synthetic-layout clips")
+    parser.add_argument("--start", type=int, default=0, help="first context frame")
+    parser.add_argument("--bin", default=DEFAULT_BIN, help="the envision4d binary")
+    parser.add_argument("--work", help="where the renders go (default: a temp folder)")
+    a = parser.parse_args(argv)
+    ckpt, root, start, binary = a.ckpt, a.root, a.start, a.bin
+    work = a.work or tempfile.mkdtemp(prefix="pose-sensitivity-")
     rows = []
     for clip in sorted(os.listdir(root)):
         rgb = os.path.join(root, clip, "rgb")
