@@ -1,7 +1,8 @@
 //! `envision4d-losses`: Envision4D's training losses and evaluation metrics on Burn.
 //!
 //! * Training (differentiable Burn tensors, autodiff): [`mse_per_frame`], [`Lpips`],
-//!   [`RgbLoss`] (`L_rgb = MSE + λ_lpips·LPIPS` per frame), [`camera_distill`] /
+//!   [`ssim_per_frame`], [`RgbLoss`]
+//!   (`L_rgb = MSE + λ_lpips·LPIPS [+ λ_ssim·(1 − SSIM)]` per frame), [`camera_distill`] /
 //!   [`depth_distill`] / [`distill`] (self-distillation against a frozen teacher).
 //! * Evaluation (host, f64): [`psnr`], [`ssim`], LPIPS ([`Lpips::distance_host`]),
 //!   [`depth_rmse`] with an explicit [`DepthAlignment`], [`camera_auc30`]; [`EvalCrop`] and
@@ -22,6 +23,7 @@ mod mse;
 mod psnr;
 mod rgb;
 mod ssim;
+mod ssim_loss;
 
 pub use camera_auc::{
     auc_from_errors, camera_auc30, relative_pose_errors, Extrinsic, PairError,
@@ -41,3 +43,4 @@ pub use mse::mse_per_frame;
 pub use psnr::psnr;
 pub use rgb::{RgbLoss, RgbTerms, LPIPS_LOSS_WEIGHT};
 pub use ssim::{ssim, SSIM_WIN_SIZE};
+pub use ssim_loss::ssim_per_frame;

@@ -1,10 +1,12 @@
-//! The rendering loss `L_rgb = MSE + λ_lpips · LPIPS`, per frame.
+//! The rendering loss `L_rgb = MSE + λ_lpips · LPIPS`, per frame, with an optional
+//! structural term `λ_ssim · (1 − SSIM)` (off by default; see [`crate::ssim_per_frame`]).
 
 use burn::tensor::Tensor;
 
 use crate::error::{LossError, Result};
 use crate::lpips::{Lpips, LpipsStatus};
 use crate::mse::mse_per_frame;
+use crate::ssim_loss::ssim_per_frame;
 
 /// λ_lpips of the paper (§4, implementation details).
 pub const LPIPS_LOSS_WEIGHT: f64 = 0.05;
@@ -16,7 +18,10 @@ pub struct RgbTerms {
     pub mse: Tensor<1>,
     /// LPIPS per frame (`None` when λ_lpips = 0).
     pub lpips: Option<Tensor<1>>,
-    /// `mse + λ_lpips · lpips` per frame, ready for the progressive frame weights.
+    /// `1 − SSIM` per frame (`None` when λ_ssim = 0).
+    pub dssim: Option<Tensor<1>>,
+    /// `mse + λ_lpips · lpips + λ_ssim · dssim` per frame, ready for the progressive frame
+    /// weights.
     pub total: Tensor<1>,
 }
 
@@ -26,6 +31,7 @@ pub struct RgbTerms {
 pub struct RgbLoss {
     lambda_lpips: f64,
     lpips: Option<Lpips>,
+    lambda_ssim: f64,
 }
 
 impl RgbLoss {
@@ -45,7 +51,26 @@ impl RgbLoss {
         Ok(Self {
             lambda_lpips,
             lpips,
+            lambda_ssim: 0.0,
         })
+    }
+
+    /// Adds `λ_ssim · (1 − SSIM)` per frame; `lambda_ssim` must be finite and ≥ 0 (0 keeps
+    /// the paper's loss).
+    pub fn with_ssim(mut self, lambda_ssim: f64) -> Result<Self> {
+        if !(lambda_ssim.is_finite() && lambda_ssim >= 0.0) {
+            return Err(LossError::Invalid {
+                what: "lambda_ssim",
+                reason: format!("must be finite and >= 0, got {lambda_ssim}"),
+            });
+        }
+        self.lambda_ssim = lambda_ssim;
+        Ok(self)
+    }
+
+    /// λ_ssim in use.
+    pub fn lambda_ssim(&self) -> f64 {
+        self.lambda_ssim
     }
 
     /// λ_lpips in use.
@@ -58,21 +83,27 @@ impl RgbLoss {
     pub fn per_frame(&self, pred: Tensor<4>, target: Tensor<4>) -> Result<RgbTerms> {
         let target = target.detach();
         let mse = mse_per_frame(pred.clone(), target.clone())?;
-        match &self.lpips {
-            Some(net) => {
-                let lp = net.forward(pred, target)?;
-                let total = mse.clone() + lp.clone() * self.lambda_lpips;
-                Ok(RgbTerms {
-                    mse,
-                    lpips: Some(lp),
-                    total,
-                })
-            }
-            None => Ok(RgbTerms {
-                total: mse.clone(),
-                mse,
-                lpips: None,
-            }),
+        let dssim = if self.lambda_ssim > 0.0 {
+            Some(ssim_per_frame(pred.clone(), target.clone())?.neg() + 1.0)
+        } else {
+            None
+        };
+        let lpips = match &self.lpips {
+            Some(net) => Some(net.forward(pred, target)?),
+            None => None,
+        };
+        let mut total = mse.clone();
+        if let Some(lp) = &lpips {
+            total = total + lp.clone() * self.lambda_lpips;
         }
+        if let Some(d) = &dssim {
+            total = total + d.clone() * self.lambda_ssim;
+        }
+        Ok(RgbTerms {
+            mse,
+            lpips,
+            dssim,
+            total,
+        })
     }
 }

@@ -13,11 +13,11 @@ const TRUNCATE: f64 = 3.5;
 /// Window side (`win_size=11`): 2·radius + 1 taps.
 pub const SSIM_WIN_SIZE: usize = 11;
 /// Luminance stabiliser constant factor.
-const K1: f64 = 0.01;
+pub(crate) const K1: f64 = 0.01;
 /// Contrast/structure stabiliser constant factor.
-const K2: f64 = 0.03;
+pub(crate) const K2: f64 = 0.03;
 /// `data_range` of the release call: images are in [0, 1].
-const DATA_RANGE: f64 = 1.0;
+pub(crate) const DATA_RANGE: f64 = 1.0;
 
 /// Mean structural similarity per image (mean over channels of the per-channel mean SSIM).
 ///
@@ -62,7 +62,7 @@ pub fn ssim(pred: &HostImages, gt: &HostImages) -> Result<Vec<f64>> {
 }
 
 /// scipy `_gaussian_kernel1d(sigma, order=0, radius)`: `exp(−x²/(2σ²))` normalised to sum 1.
-fn gaussian_taps() -> Vec<f64> {
+pub(crate) fn gaussian_taps() -> Vec<f64> {
     let radius = (TRUNCATE * SIGMA + 0.5) as i64;
     let raw: Vec<f64> = (-radius..=radius)
         .map(|x| (-0.5 * (x * x) as f64 / (SIGMA * SIGMA)).exp())
@@ -72,7 +72,7 @@ fn gaussian_taps() -> Vec<f64> {
 }
 
 /// scipy's `reflect` boundary (half-sample symmetric), valid for any offset.
-fn reflect(i: i64, n: usize) -> usize {
+pub(crate) fn reflect(i: i64, n: usize) -> usize {
     let n = n as i64;
     let m = i.rem_euclid(2 * n);
     (if m >= n { 2 * n - 1 - m } else { m }) as usize

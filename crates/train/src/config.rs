@@ -99,6 +99,10 @@ pub struct LossConfig {
     /// How many times the quaternion entries of the pose encodings count in the camera
     /// loss (translation and FoV count once); 1 is the paper's plain L1.
     pub rotation_weight: f64,
+    /// Weight of the structural term `1 − SSIM` in `L_rgb` (0, the default, is the paper's
+    /// loss). A stand-in for LPIPS where its VGG weights are not available: MSE alone
+    /// hardly penalises the blur a model uses to hedge uncertain motion.
+    pub lambda_ssim: f64,
     /// LPIPS (VGG) weights in safetensors; required when `lambda_lpips > 0`.
     pub lpips_weights: Option<PathBuf>,
 }
@@ -110,6 +114,7 @@ impl Default for LossConfig {
             lambda_cam: envision4d_losses::CAMERA_DISTILL_WEIGHT,
             lambda_depth: envision4d_losses::DEPTH_DISTILL_WEIGHT,
             rotation_weight: 1.0,
+            lambda_ssim: 0.0,
             lpips_weights: None,
         }
     }

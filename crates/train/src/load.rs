@@ -180,6 +180,7 @@ pub fn validate(cfg: &TrainConfig) -> Result<()> {
     non_negative("loss.lambda_cam", l.lambda_cam)?;
     non_negative("loss.lambda_depth", l.lambda_depth)?;
     non_negative("loss.rotation_weight", l.rotation_weight)?;
+    non_negative("loss.lambda_ssim", l.lambda_ssim)?;
     if l.lambda_lpips > 0.0 && l.lpips_weights.is_none() {
         return Err(TrainError::invalid(
             "loss.lambda_lpips",

@@ -131,7 +131,7 @@ fn make_rgb_loss(config: &TrainConfig, device: &Device) -> Result<RgbLoss> {
             path.map_or("(none)".into(), |p| p.display().to_string())
         ))
     })?;
-    Ok(RgbLoss::new(config.loss.lambda_lpips, &lpips)?)
+    Ok(RgbLoss::new(config.loss.lambda_lpips, &lpips)?.with_ssim(config.loss.lambda_ssim)?)
 }
 
 /// Adam (no weight decay: the paper states none, model.md §3) with the configured ε and,

@@ -8,3 +8,4 @@ mod gradients;
 mod lpips;
 mod parity;
 mod properties;
+mod ssim_loss;

@@ -38,6 +38,20 @@ fn shipped_configs_parse_paper_values() {
     assert_eq!(b.model, t.model);
     let m = envision4d_train::load(&config_path("synth-mix.toml")).unwrap();
     assert_eq!(m.model, t.model);
+    // The chain that made the shipped model: every link builds the same network, and only
+    // the last one adds the structural term (the paper's loss has none).
+    assert_eq!(n.loss.lambda_ssim, 0.0);
+    for (file, ssim) in [
+        ("synth-mix-long.toml", 0.0),
+        ("synth-mix-pose.toml", 0.0),
+        ("synth-mix-ssim.toml", 0.05),
+        ("probes/ssim-probe.toml", 0.05),
+        ("probes/ssim-control.toml", 0.0),
+    ] {
+        let link = envision4d_train::load(&config_path(file)).unwrap();
+        assert_eq!(link.model, t.model, "{file}");
+        assert_eq!(link.loss.lambda_ssim, ssim, "{file}");
+    }
     for v in [
         "paper",
         "linear-velocity",
@@ -92,6 +106,17 @@ fn invalid_value_names_key_and_value() {
         .to_string();
     assert!(
         err.contains("loss.lambda_lpips") && err.contains("lpips_weights"),
+        "{err}"
+    );
+    let bad = text.replace(
+        "lambda_lpips = 0.0",
+        "lambda_lpips = 0.0\nlambda_ssim = -0.5",
+    );
+    let err = envision4d_train::parse(&bad, Path::new("x.toml"))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("loss.lambda_ssim") && err.contains("-0.5"),
         "{err}"
     );
 }

@@ -107,6 +107,38 @@ fn rgb_gradient_reaches_camera_head() {
     assert!(g.is_finite() && g > 0.0, "camera-head |grad| = {g}");
 }
 
+/// Guards `loss.lambda_ssim` against being parsed but never reaching the rendering loss:
+/// with the term on, the same model and batch give the same MSE and a larger L_rgb, by
+/// λ·(1 − SSIM) of renders that are far from the truth.
+#[test]
+fn structural_term_reaches_the_rendering_loss() {
+    let cfg = tiny_config();
+    let device = Device::flex().autodiff();
+    let b = batch(2, true, &device);
+    let step = cfg.progressive.warmup_iterations;
+    let plain = Trainer::new(cfg.clone(), &device).unwrap();
+    let mut with = cfg.clone();
+    with.loss.lambda_ssim = 0.5;
+    let structural = Trainer::new(with, &device).unwrap();
+    let (a, s) = (
+        plain.loss(&b, step).unwrap(),
+        structural.loss(&b, step).unwrap(),
+    );
+    let v = |t: Tensor<1>| t.into_data().iter::<f32>().next().unwrap();
+    let (mse_a, mse_s) = (v(a.rgb_mse.unwrap()), v(s.rgb_mse.unwrap()));
+    assert!(
+        (mse_a - mse_s).abs() <= 1e-6 * mse_a.abs(),
+        "{mse_a} vs {mse_s}"
+    );
+    let extra = v(s.rgb) - v(a.rgb);
+    // An untrained model's renders have SSIM well below 1 against the frames.
+    assert!(
+        extra > 0.01 && extra <= 0.5 * 2.0,
+        "λ·(1 − SSIM) added {extra}"
+    );
+    assert!(v(s.total).is_finite());
+}
+
 /// Guards the NaN guard: a non-finite loss skips the update and is counted.
 #[test]
 fn non_finite_loss_skips_step() {

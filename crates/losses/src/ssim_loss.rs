@@ -1,0 +1,99 @@
+//! Differentiable SSIM on Burn tensors, for the optional structural term of `L_rgb`.
+//!
+//! Why it exists: the paper's perceptual term is LPIPS-VGG, whose ImageNet weights cannot be
+//! fetched on an offline machine. Trained on MSE alone, the renders hedge uncertain motion
+//! with blur, which MSE hardly penalises. `1 − SSIM` (the structural term 3D Gaussian
+//! splatting trains with) penalises blur directly and needs no weights. It is off by default
+//! (`loss.lambda_ssim = 0`), so the paper's loss is unchanged unless a config asks for it.
+//!
+//! The value equals the host metric [`crate::ssim`] (scikit-image's definition: 11-tap
+//! Gaussian window with σ 1.5, scipy `reflect` borders, sample-covariance correction, a
+//! 5-pixel border cropped before the mean), so a training curve reads in the same units as
+//! `envision4d eval`.
+
+use burn::tensor::{Int, Tensor, TensorData};
+
+use crate::error::{LossError, Result};
+use crate::mse::check_pair;
+use crate::ssim::{gaussian_taps, reflect, DATA_RANGE, K1, K2, SSIM_WIN_SIZE};
+
+/// Mean SSIM per frame of `[F, C, H, W]` renders against targets (target detached), shape
+/// `[F]`, differentiable in `pred`. Both sides must be at least 11 pixels.
+pub fn ssim_per_frame(pred: Tensor<4>, target: Tensor<4>) -> Result<Tensor<1>> {
+    check_pair("ssim loss", &pred, &target)?;
+    let [f, c, h, w] = pred.dims();
+    if h < SSIM_WIN_SIZE || w < SSIM_WIN_SIZE {
+        return Err(LossError::Invalid {
+            what: "ssim loss",
+            reason: format!(
+                "a {h}x{w} image is smaller than the {SSIM_WIN_SIZE}x{SSIM_WIN_SIZE} window"
+            ),
+        });
+    }
+    let x = target.detach();
+    let y = pred;
+    // The five filtered maps in one pass: [F, 5C, H, W].
+    let maps = Tensor::cat(
+        vec![
+            x.clone(),
+            y.clone(),
+            x.clone().square(),
+            y.clone().square(),
+            x * y,
+        ],
+        1,
+    );
+    let blurred = gaussian_blur(maps);
+    let part = |k: usize| {
+        blurred
+            .clone()
+            .slice([0..f, k * c..(k + 1) * c, 0..h, 0..w])
+    };
+    let (ux, uy, uxx, uyy, uxy) = (part(0), part(1), part(2), part(3), part(4));
+    let np = (SSIM_WIN_SIZE * SSIM_WIN_SIZE) as f64;
+    let cov_norm = np / (np - 1.0);
+    let vx = (uxx - ux.clone().square()) * cov_norm;
+    let vy = (uyy - uy.clone().square()) * cov_norm;
+    let vxy = (uxy - ux.clone() * uy.clone()) * cov_norm;
+    let c1 = (K1 * DATA_RANGE).powi(2);
+    let c2 = (K2 * DATA_RANGE).powi(2);
+    let num = (ux.clone() * uy.clone() * 2.0 + c1) * (vxy * 2.0 + c2);
+    let den = (ux.square() + uy.square() + c1) * (vx + vy + c2);
+    let s = num / den;
+    let pad = (SSIM_WIN_SIZE - 1) / 2;
+    let (hi, wi) = (h - 2 * pad, w - 2 * pad);
+    Ok(s.slice([0..f, 0..c, pad..h - pad, pad..w - pad])
+        .reshape([f, c * hi * wi])
+        .mean_dim(1)
+        .reshape([f]))
+}
+
+/// Separable Gaussian filter over the last two axes with scipy's `reflect` borders: the
+/// padding is a gather of mirrored indices, the filter a weighted sum of 11 shifted slices
+/// (cheap at training sizes and backend-agnostic, so autodiff needs no custom op).
+fn gaussian_blur(t: Tensor<4>) -> Tensor<4> {
+    let taps = gaussian_taps();
+    let rows = filter_axis(t, 2, &taps);
+    filter_axis(rows, 3, &taps)
+}
+
+fn filter_axis(t: Tensor<4>, axis: usize, taps: &[f64]) -> Tensor<4> {
+    let dims = t.dims();
+    let n = dims[axis];
+    let r = (taps.len() / 2) as i64;
+    let idx: Vec<i64> = (-r..n as i64 + r).map(|i| reflect(i, n) as i64).collect();
+    let len = idx.len();
+    let idx = Tensor::<1, Int>::from_data(TensorData::new(idx, [len]), &t.device());
+    let padded = t.select(axis, idx);
+    let mut out: Option<Tensor<4>> = None;
+    for (k, &tap) in taps.iter().enumerate() {
+        let mut ranges = dims.map(|d| 0..d);
+        ranges[axis] = k..k + n;
+        let term = padded.clone().slice(ranges) * tap;
+        out = Some(match out {
+            Some(acc) => acc + term,
+            None => term,
+        });
+    }
+    out.expect("an 11-tap window is never empty")
+}
