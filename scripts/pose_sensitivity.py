@@ -107,6 +107,7 @@ def main(argv):
     print(f"last future frame forward: truth {mean('gt_dl'):.3f} m, predicted "
           f"{mean('order_dl'):.3f} m, correlation {corr(col('order_dl'), col('gt_dl')):+.2f}")
     print(f"frame 1 yaw: truth mean |.| {sum(abs(v) for v in col('gt_yaw')) / len(rows):.3f} deg,"
+          f" predicted {sum(abs(v) for v in col('order_yaw')) / len(rows):.3f} deg,"
           f" correlation {corr(col('order_yaw'), col('gt_yaw')):+.2f}")
     print(f"frame 1 forward with the first frame twice: {mean('same_d1'):.3f} m; reversed "
           f"order: {mean('reverse_d1'):.3f} m (a motion-aware model: ~0 m, and about minus the truth)")
