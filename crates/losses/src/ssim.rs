@@ -37,14 +37,7 @@ pub(crate) const DATA_RANGE: f64 = 1.0;
 pub fn ssim(pred: &HostImages, gt: &HostImages) -> Result<Vec<f64>> {
     same_shape("ssim", pred, gt)?;
     let [n, c, h, w] = pred.shape();
-    if h < SSIM_WIN_SIZE || w < SSIM_WIN_SIZE {
-        return Err(LossError::Invalid {
-            what: "ssim",
-            reason: format!(
-                "a {h}x{w} image is smaller than the {SSIM_WIN_SIZE}x{SSIM_WIN_SIZE} window"
-            ),
-        });
-    }
+    check_window("ssim", h, w)?;
     let taps = gaussian_taps();
     let plane = h * w;
     Ok((0..n)
@@ -59,6 +52,19 @@ pub fn ssim(pred: &HostImages, gt: &HostImages) -> Result<Vec<f64>> {
             total / c as f64
         })
         .collect())
+}
+
+/// Both image sides must hold the 11-pixel window, as skimage requires.
+pub(crate) fn check_window(what: &'static str, h: usize, w: usize) -> Result<()> {
+    if h < SSIM_WIN_SIZE || w < SSIM_WIN_SIZE {
+        return Err(LossError::Invalid {
+            what,
+            reason: format!(
+                "a {h}x{w} image is smaller than the {SSIM_WIN_SIZE}x{SSIM_WIN_SIZE} window"
+            ),
+        });
+    }
+    Ok(())
 }
 
 /// scipy `_gaussian_kernel1d(sigma, order=0, radius)`: `exp(−x²/(2σ²))` normalised to sum 1.

@@ -13,23 +13,16 @@
 
 use burn::tensor::{Int, Tensor, TensorData};
 
-use crate::error::{LossError, Result};
+use crate::error::Result;
 use crate::mse::check_pair;
-use crate::ssim::{gaussian_taps, reflect, DATA_RANGE, K1, K2, SSIM_WIN_SIZE};
+use crate::ssim::{check_window, gaussian_taps, reflect, DATA_RANGE, K1, K2, SSIM_WIN_SIZE};
 
 /// Mean SSIM per frame of `[F, C, H, W]` renders against targets (target detached), shape
 /// `[F]`, differentiable in `pred`. Both sides must be at least 11 pixels.
 pub fn ssim_per_frame(pred: Tensor<4>, target: Tensor<4>) -> Result<Tensor<1>> {
     check_pair("ssim loss", &pred, &target)?;
     let [f, c, h, w] = pred.dims();
-    if h < SSIM_WIN_SIZE || w < SSIM_WIN_SIZE {
-        return Err(LossError::Invalid {
-            what: "ssim loss",
-            reason: format!(
-                "a {h}x{w} image is smaller than the {SSIM_WIN_SIZE}x{SSIM_WIN_SIZE} window"
-            ),
-        });
-    }
+    check_window("ssim loss", h, w)?;
     let x = target.detach();
     let y = pred;
     // The five filtered maps in one pass: [F, 5C, H, W].

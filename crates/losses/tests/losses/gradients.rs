@@ -2,7 +2,8 @@
 
 use burn::tensor::{DType, Device, Tensor};
 use envision4d_losses::{
-    camera_distill, depth_distill, distill, mse_per_frame, DistillWeights, Lpips, LpipsWeights,
+    camera_distill, depth_distill, distill, mse_per_frame, ssim_per_frame, DistillWeights, Lpips,
+    LpipsWeights,
 };
 
 use crate::common::{fixture_vgg_weights, tensor, values, Rng};
@@ -58,6 +59,27 @@ fn mse_gradient_matches_finite_differences() {
         let t = tensor(&y, shape, &p.device(), DType::F64);
         weighted(mse_per_frame(p, t).unwrap(), &[0.7, 1.3])
     });
+}
+
+/// Guards the SSIM-term gradient (quotient rule through five blurred maps, reflected
+/// borders feeding the cropped interior) at corner, edge, interior and last entries.
+#[test]
+fn ssim_gradient_matches_finite_differences() {
+    let mut rng = Rng::new(9);
+    let shape = [2, 3, 12, 13];
+    let n: usize = shape.iter().product();
+    let x = rng.vec(n, 0.0, 1.0);
+    let y = rng.vec(n, 0.0, 1.0);
+    check(
+        "ssim",
+        &x,
+        shape,
+        &[0, 5, 12, 80, 156, 300, 500, n - 1],
+        &|p| {
+            let t = tensor(&y, shape, &p.device(), DType::F64);
+            weighted(ssim_per_frame(p, t).unwrap(), &[0.7, 1.3])
+        },
+    );
 }
 
 /// Central finite differences of LPIPS at random images; `image_weights` weights the

@@ -62,46 +62,22 @@ fn ssim_loss_equals_the_metric_on_a_minimal_odd_image() {
     }
 }
 
-/// Guards the SSIM gradient (quotient rule through five blurred maps) against central
-/// differences, and that the target gets none.
+/// Guards the detached target: the SSIM term must pull the render toward the frame, never
+/// the frame toward the render (the gradient itself is checked in `gradients.rs`).
 #[test]
-fn ssim_loss_gradient_matches_finite_differences() {
+fn ssim_loss_target_gets_no_gradient() {
     let mut rng = Rng::new(9);
     let shape = [1, 3, 12, 13];
     let n: usize = shape.iter().product();
-    let x = rng.vec(n, 0.0, 1.0);
-    let y = rng.vec(n, 0.0, 1.0);
     let ad = Device::flex().autodiff();
-    let p = tensor(&x, shape, &ad, DType::F64).require_grad();
-    let t = tensor(&y, shape, &ad, DType::F64).require_grad();
+    let p = tensor(&rng.vec(n, 0.0, 1.0), shape, &ad, DType::F64).require_grad();
+    let t = tensor(&rng.vec(n, 0.0, 1.0), shape, &ad, DType::F64).require_grad();
     let grads = ssim_per_frame(p.clone(), t.clone())
         .unwrap()
         .sum()
         .backward();
-    let g = values(p.grad(&grads).expect("gradient"));
+    assert!(p.grad(&grads).is_some());
     assert!(t.grad(&grads).is_none(), "the target must be detached");
-    let plain = Device::flex();
-    let eval = |v: &[f64]| {
-        let t = tensor(&y, shape, &plain, DType::F64);
-        values(ssim_per_frame(tensor(v, shape, &plain, DType::F64), t).unwrap())[0]
-    };
-    const EPS: f64 = 1e-6;
-    // Corner, edge, interior and last entries: the reflected border feeds the crop too.
-    for i in [0, 5, 12, 80, 156, 300, n - 1] {
-        let (mut a, mut b) = (x.clone(), x.clone());
-        a[i] += EPS;
-        b[i] -= EPS;
-        let fd = (eval(&a) - eval(&b)) / (2.0 * EPS);
-        assert!(
-            (fd - g[i]).abs() <= 1e-8 + 1e-5 * g[i].abs(),
-            "[{i}]: finite difference {fd:e} vs autodiff {:e}",
-            g[i]
-        );
-    }
-    assert!(
-        g.iter().any(|v| *v != 0.0),
-        "all gradients zero: the check is vacuous"
-    );
 }
 
 /// Guards the stabilising constants on the renders that have no variance at all (sky,
