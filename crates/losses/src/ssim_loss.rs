@@ -8,8 +8,8 @@
 //!
 //! The value equals the host metric [`crate::ssim`] (scikit-image's definition: 11-tap
 //! Gaussian window with σ 1.5, scipy `reflect` borders, sample-covariance correction, a
-//! 5-pixel border cropped before the mean), so a training curve reads in the same units as
-//! `envision4d eval`.
+//! 5-pixel border cropped before the mean): the term trains on the very SSIM that
+//! `envision4d eval` reports.
 
 use burn::tensor::{Int, Tensor, TensorData};
 

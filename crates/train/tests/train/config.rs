@@ -52,6 +52,8 @@ fn shipped_configs_parse_paper_values() {
         assert_eq!(link.model, t.model, "{file}");
         assert_eq!(link.loss.lambda_ssim, ssim, "{file}");
     }
+    let four = envision4d_train::load(&config_path("probes/future-iterations-4.toml")).unwrap();
+    assert_eq!(four.model.future_iterations, 4);
     for v in [
         "paper",
         "linear-velocity",
