@@ -11,6 +11,8 @@
 //! 5-pixel border cropped before the mean): the term trains on the very SSIM that
 //! `envision4d eval` reports.
 
+use burn::tensor::module::conv2d;
+use burn::tensor::ops::ConvOptions;
 use burn::tensor::{Int, Tensor, TensorData};
 
 use crate::error::Result;
@@ -62,8 +64,11 @@ pub fn ssim_per_frame(pred: Tensor<4>, target: Tensor<4>) -> Result<Tensor<1>> {
 }
 
 /// Separable Gaussian filter over the last two axes with scipy's `reflect` borders: the
-/// padding is a gather of mirrored indices, the filter a weighted sum of 11 shifted slices
-/// (cheap at training sizes and backend-agnostic, so autodiff needs no custom op).
+/// padding is a gather of mirrored indices, each pass a depthwise (one group per channel)
+/// 11-tap convolution with no padding of its own. A convolution, not a sum of 11 shifted
+/// slices: one op and one backward per pass (forward + backward 2.4x faster on burn-flex,
+/// 76 against 185 ms for a step's 16 renders; `cargo bench -p envision4d-losses --bench
+/// ssim_loss`).
 fn gaussian_blur(t: Tensor<4>) -> Tensor<4> {
     let taps = gaussian_taps();
     let rows = filter_axis(t, 2, &taps);
@@ -71,22 +76,29 @@ fn gaussian_blur(t: Tensor<4>) -> Tensor<4> {
 }
 
 fn filter_axis(t: Tensor<4>, axis: usize, taps: &[f64]) -> Tensor<4> {
-    let dims = t.dims();
-    let n = dims[axis];
+    let [_, channels, h, w] = t.dims();
+    let n = if axis == 2 { h } else { w };
     let r = (taps.len() / 2) as i64;
     let idx: Vec<i64> = (-r..n as i64 + r).map(|i| reflect(i, n) as i64).collect();
     let len = idx.len();
-    let idx = Tensor::<1, Int>::from_data(TensorData::new(idx, [len]), &t.device());
+    let device = t.device();
+    let idx = Tensor::<1, Int>::from_data(TensorData::new(idx, [len]), &device);
     let padded = t.select(axis, idx);
-    let mut out: Option<Tensor<4>> = None;
-    for (k, &tap) in taps.iter().enumerate() {
-        let mut ranges = dims.map(|d| 0..d);
-        ranges[axis] = k..k + n;
-        let term = padded.clone().slice(ranges) * tap;
-        out = Some(match out {
-            Some(acc) => acc + term,
-            None => term,
-        });
-    }
-    out.expect("an 11-tap window is never empty")
+    let kernel = if axis == 2 {
+        [channels, 1, taps.len(), 1]
+    } else {
+        [channels, 1, 1, taps.len()]
+    };
+    let weights: Vec<f64> = (0..channels).flat_map(|_| taps.iter().copied()).collect();
+    let dtype = padded.dtype();
+    let weight = Tensor::<4>::from_data(
+        TensorData::new(weights, kernel).convert_dtype(dtype),
+        (&device, dtype),
+    );
+    conv2d(
+        padded,
+        weight,
+        None,
+        ConvOptions::new([1, 1], [0, 0], [1, 1], channels),
+    )
 }
