@@ -175,3 +175,36 @@ pub fn intrinsics(width: u32, height: u32, focal: f64) -> [f64; 9] {
         1.0,
     ]
 }
+
+/// The wgpu device for parity tests, or `None` when skipped on purpose
+/// (`ENVISION4D_SKIP_WGPU=1`). Panics with what to install when no adapter can be made, so a
+/// CI machine without a Vulkan driver fails loudly instead of passing silently.
+pub fn wgpu_test_device() -> Option<burn::tensor::Device> {
+    use burn::tensor::{Device, DeviceKind, Tensor};
+    use std::panic::{catch_unwind, AssertUnwindSafe};
+    if std::env::var_os("XDG_RUNTIME_DIR").is_none() {
+        let dir = std::env::temp_dir().join(format!("envision4d-xdg-{}", std::process::id()));
+        let _ = std::fs::create_dir_all(&dir);
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::PermissionsExt;
+            let _ = std::fs::set_permissions(&dir, std::fs::Permissions::from_mode(0o700));
+        }
+        // SAFETY-free in practice: set once, before any wgpu thread reads it.
+        unsafe { std::env::set_var("XDG_RUNTIME_DIR", &dir) };
+    }
+    let probe = catch_unwind(AssertUnwindSafe(|| {
+        let device = Device::wgpu(DeviceKind::DefaultDevice);
+        let t = Tensor::<1>::from_floats([1.0, 2.0], &device);
+        let _ = t.into_data();
+        device
+    }));
+    match probe {
+        Ok(d) => Some(d),
+        Err(_) if std::env::var("ENVISION4D_SKIP_WGPU").as_deref() == Ok("1") => {
+            eprintln!("SKIP wgpu parity: no wgpu adapter and ENVISION4D_SKIP_WGPU=1");
+            None
+        }
+        Err(_) => panic!("no wgpu adapter could be created (install a Vulkan driver, e.g. mesa-vulkan-drivers, or set ENVISION4D_SKIP_WGPU=1)"),
+    }
+}

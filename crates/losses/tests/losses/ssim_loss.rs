@@ -160,3 +160,37 @@ fn rgb_loss_adds_the_structural_term_only_when_asked() {
         assert!(err.contains("lambda_ssim"), "{err}");
     }
 }
+
+/// Guards training with `--backend wgpu` and the structural term: the reflect gather and
+/// the depthwise convolutions give the CPU's values and gradients on the WGSL path.
+#[test]
+fn ssim_loss_on_wgpu_matches_the_cpu() {
+    let Some(gpu) = envision4d_splat::testkit::wgpu_test_device() else {
+        return;
+    };
+    let mut rng = Rng::new(21);
+    let shape = [2, 3, 20, 27];
+    let n: usize = shape.iter().product();
+    let (x, y) = (rng.vec(n, 0.0, 1.0), rng.vec(n, 0.0, 1.0));
+    let run = |device: Device| {
+        let p = tensor(&x, shape, &device, DType::F32).require_grad();
+        let t = tensor(&y, shape, &device, DType::F32);
+        let s = ssim_per_frame(p.clone(), t).unwrap();
+        let grads = (s.clone() * tensor(&[0.7, 1.3], [2], &device, DType::F32))
+            .sum()
+            .backward();
+        (values(s), values(p.grad(&grads).unwrap()))
+    };
+    let (s_cpu, g_cpu) = run(Device::flex().autodiff());
+    let (s_gpu, g_gpu) = run(gpu.autodiff());
+    for (a, b) in s_cpu.iter().zip(&s_gpu) {
+        assert!((a - b).abs() < 1e-5, "ssim cpu {a} vs wgpu {b}");
+    }
+    let scale = g_cpu.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    for (i, (a, b)) in g_cpu.iter().zip(&g_gpu).enumerate() {
+        assert!(
+            (a - b).abs() <= 1e-4 * scale,
+            "grad[{i}] cpu {a} vs wgpu {b}"
+        );
+    }
+}

@@ -6,10 +6,10 @@
 //! to skip them explicitly instead.
 
 use crate::common::{threshold_mask, View};
-use burn::tensor::{DType, Device, DeviceKind, Tensor, TensorData};
+use burn::tensor::{DType, Device, Tensor, TensorData};
 use envision4d_splat::kernels::launch::force_cas_atomics;
 use envision4d_splat::testkit::{
-    intrinsics, look_at, random_scene, HostScene, SceneSpec, SplitMix64,
+    intrinsics, look_at, random_scene, wgpu_test_device, HostScene, SceneSpec, SplitMix64,
 };
 use envision4d_splat::{render, Cameras, Gaussians, RasterConfig};
 use std::panic::{catch_unwind, AssertUnwindSafe};
@@ -23,33 +23,8 @@ const GRAD_ABS_TOL: f64 = 1e-6;
 /// paths may legitimately take different skip decisions.
 const THRESHOLD_MARGIN: f64 = 1e-5;
 
-/// The wgpu device, or `None` when explicitly skipped; panics when no adapter can be made.
 fn wgpu_device() -> Option<Device> {
-    if std::env::var_os("XDG_RUNTIME_DIR").is_none() {
-        let dir = std::env::temp_dir().join(format!("envision4d-xdg-{}", std::process::id()));
-        let _ = std::fs::create_dir_all(&dir);
-        #[cfg(unix)]
-        {
-            use std::os::unix::fs::PermissionsExt;
-            let _ = std::fs::set_permissions(&dir, std::fs::Permissions::from_mode(0o700));
-        }
-        // SAFETY-free in practice: set once, before any wgpu thread reads it.
-        unsafe { std::env::set_var("XDG_RUNTIME_DIR", &dir) };
-    }
-    let probe = catch_unwind(AssertUnwindSafe(|| {
-        let device = Device::wgpu(DeviceKind::DefaultDevice);
-        let t = Tensor::<1>::from_floats([1.0, 2.0], &device);
-        let _ = t.into_data();
-        device
-    }));
-    match probe {
-        Ok(d) => Some(d),
-        Err(_) if std::env::var("ENVISION4D_SKIP_WGPU").as_deref() == Ok("1") => {
-            eprintln!("SKIP wgpu parity: no wgpu adapter and ENVISION4D_SKIP_WGPU=1");
-            None
-        }
-        Err(_) => panic!("no wgpu adapter could be created (install a Vulkan driver, e.g. mesa-vulkan-drivers, or set ENVISION4D_SKIP_WGPU=1)"),
-    }
+    wgpu_test_device()
 }
 
 fn t<const D: usize>(v: &[f64], shape: [usize; D], device: &Device) -> Tensor<D> {
