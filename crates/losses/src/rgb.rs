@@ -68,11 +68,6 @@ impl RgbLoss {
         Ok(self)
     }
 
-    /// λ_ssim in use.
-    pub fn lambda_ssim(&self) -> f64 {
-        self.lambda_ssim
-    }
-
     /// λ_lpips in use.
     pub fn lambda_lpips(&self) -> f64 {
         self.lambda_lpips

@@ -23,10 +23,6 @@ const GRAD_ABS_TOL: f64 = 1e-6;
 /// paths may legitimately take different skip decisions.
 const THRESHOLD_MARGIN: f64 = 1e-5;
 
-fn wgpu_device() -> Option<Device> {
-    wgpu_test_device()
-}
-
 fn t<const D: usize>(v: &[f64], shape: [usize; D], device: &Device) -> Tensor<D> {
     Tensor::from_data(
         TensorData::new(v.to_vec(), shape).convert_dtype(DType::F32),
@@ -155,7 +151,7 @@ fn check_parity(
     h: u32,
     cfg: &RasterConfig,
 ) -> Option<f64> {
-    let gpu = wgpu_device()?;
+    let gpu = wgpu_test_device()?;
     let wts = weights(scene, views, w, h, cfg, 99);
     let a = run(&gpu, scene, views, w, h, cfg, &wts);
     let b = run(&Device::flex(), scene, views, w, h, cfg, &wts);
@@ -334,7 +330,9 @@ fn wgpu_culls_poisoned_gaussians() {
 /// naming the buffer and the limit, never silently truncate or corrupt.
 #[test]
 fn wgpu_oversized_buffer_fails_loudly() {
-    let Some(device) = wgpu_device() else { return };
+    let Some(device) = wgpu_test_device() else {
+        return;
+    };
     let mut scene = HostScene::default();
     scene.push(
         [0.0, 0.0, 2.0],
