@@ -21,9 +21,9 @@ use envision4d_data::atomic;
 use envision4d_data::synth::{render_clip, write_clip, Preset, SynthConfig, DEFAULT_SUPERSAMPLE};
 use envision4d_model::checkpoint::checkpoint_config;
 use envision4d_model::ModelConfig;
-use envision4d_train::batch::HostClip;
+use envision4d_data::HostClip;
 use envision4d_train::config::{DataConfig, DataLayout};
-use envision4d_train::eval::{evaluate_dataset, EvalOptions};
+use envision4d_eval::{evaluate_dataset, EvalOptions};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::{Path, PathBuf};
 use std::time::{SystemTime, UNIX_EPOCH};
@@ -110,16 +110,13 @@ fn resolve_checkpoint(arg: Option<&Path>) -> Result<PathBuf> {
     .into())
 }
 
-/// A seed that differs from run to run: the clock's nanoseconds, mixed (SplitMix64's
-/// finaliser) so that a coarse clock still spreads over the whole range.
+/// A seed that differs from run to run: the clock's nanoseconds, mixed (the first draw of
+/// the project's seeded RNG from them) so that a coarse clock still spreads over the range.
 fn fresh_seed() -> u64 {
     let nanos = SystemTime::now()
         .duration_since(UNIX_EPOCH)
         .map_or(0, |d| d.as_nanos() as u64);
-    let mut z = nanos.wrapping_add(0x9E37_79B9_7F4A_7C15);
-    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    (z ^ (z >> 31)) % FRESH_SEED_RANGE
+    envision4d_data::rng::Rng::new(nanos).next_u64() % FRESH_SEED_RANGE
 }
 
 /// Everything the run resolved before any heavy work.
@@ -199,7 +196,7 @@ pub fn run(args: DemoArgs) -> Result<()> {
         stride: 1,
         augment: Default::default(),
     };
-    let dataset = envision4d_train::data::open_dataset(&data, cfg, &clip_root)?;
+    let dataset = envision4d_train::dataset::open_dataset(&data, cfg, &clip_root)?;
     // Window 0 is the clip's first T_c + T_f frames (the only window the demo writes).
     let indices = [0];
     let device = args.backend.device();

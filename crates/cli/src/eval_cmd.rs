@@ -13,9 +13,9 @@ use envision4d_losses::{DepthAlignment, EvalCrop};
 use envision4d_model::checkpoint::checkpoint_config;
 use envision4d_model::{Envision4d, ModelConfig};
 use envision4d_train::config::{DataConfig, DataLayout};
-use envision4d_train::eval::sweep::{mark_pareto, plan, summarize, with_horizon, SweepBase};
-use envision4d_train::eval::{
-    evaluate_dataset, future_frames, summary, EvalOptions, Report, SweepPoint,
+use envision4d_eval::sweep::{mark_pareto, plan, summarize, with_horizon, SweepBase};
+use envision4d_eval::{
+    evaluate_dataset, summary, EvalOptions, Report, SweepPoint,
 };
 use indicatif::{ProgressBar, ProgressStyle};
 use shared::{backend_name, build_report, load_model, lpips_status, warm_up, Provenance};
@@ -222,11 +222,11 @@ pub fn run(args: EvalArgs) -> Result<()> {
         None => (model, setup.model.clone()),
     };
     let cfg = &horizon_cfg;
-    let dataset = envision4d_train::data::open_dataset(&setup.data, &dataset_cfg, &setup.data.root)
+    let dataset = envision4d_train::dataset::open_dataset(&setup.data, &dataset_cfg, &setup.data.root)
         .map_err(|e| InputError(e.to_string()))?;
     let mut indices: Vec<usize> = match setup.clips {
         Selection::All => (0..dataset.len()).collect(),
-        Selection::Split(split) => envision4d_train::data::split(&dataset, split, setup.seed),
+        Selection::Split(split) => envision4d_train::dataset::split(&dataset, split, setup.seed),
     };
     if indices.is_empty() {
         return Err(InputError(format!(
@@ -285,7 +285,7 @@ fn run_sweep(
     let cfg = &setup.model;
     let base = SweepBase {
         backend: backend_name(args.backend),
-        future_frames: future_frames(model),
+        future_frames: model.future_frames(),
         input_size: cfg.image_size,
         patch_size: cfg.patch_size,
         raster: opts.raster,

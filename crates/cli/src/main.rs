@@ -1,6 +1,8 @@
 //! `envision4d`: the command-line program.
 //!
-//! Exit codes: 0 success, 2 bad input (unreadable/invalid file, bad argument), 1 anything else.
+//! Exit codes, the same for every subcommand and decided in one place ([`exit_code`]): 0
+//! success, 2 the user's input (an unreadable or invalid file, key or argument), 1 anything
+//! else (an internal failure, a failed write, a diverged run).
 
 mod backend_choice;
 mod demo_cmd;
@@ -75,11 +77,22 @@ fn main() -> ExitCode {
         Ok(()) => ExitCode::SUCCESS,
         Err(err) => {
             eprintln!("error: {err:#}");
-            if err.downcast_ref::<InputError>().is_some() {
-                ExitCode::from(2)
-            } else {
-                ExitCode::from(1)
-            }
+            exit_code(&err)
         }
     }
+}
+
+/// Exit code 2 when the error (or an error it wraps) is the user's input, 1 otherwise. The
+/// crates' typed errors say which they are; `InputError` marks the CLI's own checks.
+fn exit_code(err: &anyhow::Error) -> ExitCode {
+    let input = err.chain().any(|e| {
+        e.downcast_ref::<InputError>().is_some()
+            || e.downcast_ref::<envision4d_train::TrainError>()
+                .is_some_and(|t| t.is_input())
+            || e.downcast_ref::<envision4d_eval::EvalError>()
+                .is_some_and(|t| t.is_input())
+            || e.downcast_ref::<envision4d_data::DataError>()
+                .is_some_and(|t| t.is_input())
+    });
+    ExitCode::from(if input { 2 } else { 1 })
 }

@@ -6,7 +6,7 @@ mod canvas;
 mod font;
 
 use canvas::{Draw, Panel, Series, XTicks};
-use envision4d_train::eval::{ClipMetrics, HorizonScore, Method, MethodScore, Report, SweepPoint};
+use envision4d_eval::{ClipMetrics, HorizonScore, Method, MethodScore, Report, SweepPoint};
 use std::io::Cursor;
 
 /// Panels per row.

@@ -8,7 +8,7 @@ use envision4d_train::freeze::ParamSplit;
 use envision4d_train::run::{run as run_training, Observer, RunOptions};
 use envision4d_train::step::build_model;
 use envision4d_train::validate::ValReport;
-use envision4d_train::{StepReport, TrainError};
+use envision4d_train::StepReport;
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::{Path, PathBuf};
 
@@ -55,20 +55,8 @@ fn parse_device(spec: &str) -> Result<burn::tensor::Device> {
     Ok(d.autodiff())
 }
 
-/// Config or data problems are the user's (exit code 2); the rest is the program's.
-fn classify(e: TrainError) -> anyhow::Error {
-    match e {
-        TrainError::Io { .. }
-        | TrainError::Parse { .. }
-        | TrainError::Invalid { .. }
-        | TrainError::Batch(_)
-        | TrainError::Input(_) => InputError(e.to_string()).into(),
-        other => anyhow::Error::new(other),
-    }
-}
-
 pub fn run(args: TrainArgs) -> Result<()> {
-    let cfg = envision4d_train::load(&args.config).map_err(|e| InputError(e.to_string()))?;
+    let cfg = envision4d_train::load(&args.config)?;
     let devices = args
         .devices
         .iter()
@@ -94,7 +82,7 @@ pub fn run(args: TrainArgs) -> Result<()> {
         },
         &mut bar,
     )
-    .map_err(classify)?;
+    ?;
     bar.0.finish();
     println!(
         "trained {} steps ({} skipped); model {}; last checkpoint {}; log {}",
@@ -119,7 +107,7 @@ fn dry_run(
     // report whether the files the run needs exist.
     let mut bare = cfg.clone();
     bare.init_checkpoint = None;
-    let model = build_model(&bare, device).map_err(|e| InputError(e.to_string()))?;
+    let model = build_model(&bare, device)?;
     let split = ParamSplit::new(&model, &cfg.freeze);
     println!(
         "# resolved settings ({})\n{}",

@@ -48,11 +48,21 @@ pub enum DataError {
     },
     #[error("{}: no usable clips ({skipped} skipped; see the warnings above)", root.display())]
     NoClips { root: PathBuf, skipped: usize },
+    #[error("clip {clip} has no frames")]
+    EmptyClip { clip: String },
     #[error("{}: cannot write: {msg}", path.display())]
     Write { path: PathBuf, msg: String },
 }
 
 pub type Result<T> = std::result::Result<T, DataError>;
+
+impl DataError {
+    /// Whether the user can fix this by changing a file or setting they gave (everything but
+    /// a failed write of our own output): the CLI's exit code 2 against 1.
+    pub fn is_input(&self) -> bool {
+        !matches!(self, DataError::Write { .. })
+    }
+}
 
 impl DataError {
     pub(crate) fn io(path: impl Into<PathBuf>, source: std::io::Error) -> Self {

@@ -1,5 +1,7 @@
-//! Small typed math values shared by the readers and the synthetic world.
+//! Small typed math values shared by the readers and the synthetic world. Rigid transforms
+//! are computed with `glam` (f64); [`Mat4`] is the row-major form files and JSON hold.
 
+use glam::{DMat3, DMat4, DVec3};
 use serde::{Deserialize, Serialize};
 use std::ops::{Add, Mul, Neg, Sub};
 
@@ -96,14 +98,23 @@ impl Mat4 {
         }
         m
     }
+    /// The same matrix as glam's (column-major) `DMat4`.
+    pub fn to_glam(&self) -> DMat4 {
+        DMat4::from_cols_array_2d(&self.0).transpose()
+    }
+    pub fn from_glam(m: DMat4) -> Mat4 {
+        Mat4(m.transpose().to_cols_array_2d())
+    }
+    /// The rotation block `R` of `[R | t]`.
+    pub fn rotation(&self) -> DMat3 {
+        DMat3::from_mat4(self.to_glam())
+    }
+    /// The translation column `t` of `[R | t]`.
+    pub fn translation(&self) -> DVec3 {
+        DVec3::new(self.0[0][3], self.0[1][3], self.0[2][3])
+    }
     pub fn mul(&self, o: &Mat4) -> Mat4 {
-        let mut m = [[0.0; 4]; 4];
-        for (i, row) in m.iter_mut().enumerate() {
-            for (j, v) in row.iter_mut().enumerate() {
-                *v = (0..4).map(|k| self.0[i][k] * o.0[k][j]).sum();
-            }
-        }
-        Mat4(m)
+        Mat4::from_glam(self.to_glam() * o.to_glam())
     }
     pub fn transform_point(&self, p: Vec3) -> Vec3 {
         let m = &self.0;
@@ -116,16 +127,14 @@ impl Mat4 {
     /// Inverse of a rigid transform [R | t] -> [R^T | -R^T t]. Callers check rigidity
     /// with [`Mat4::rigid_error`] first where the matrix comes from a file.
     pub fn rigid_inverse(&self) -> Mat4 {
-        let m = &self.0;
-        let mut r = [[0.0; 3]; 3];
-        for (i, row) in r.iter_mut().enumerate() {
-            for (j, v) in row.iter_mut().enumerate() {
-                *v = m[j][i];
-            }
-        }
-        let t = Vec3::new(m[0][3], m[1][3], m[2][3]);
-        let rt = |row: [f64; 3]| -(row[0] * t.x + row[1] * t.y + row[2] * t.z);
-        Mat4::from_rt(r, Vec3::new(rt(r[0]), rt(r[1]), rt(r[2])))
+        let rt = self.rotation().transpose();
+        let t = -(rt * self.translation());
+        Mat4::from_glam(DMat4::from_cols(
+            rt.x_axis.extend(0.0),
+            rt.y_axis.extend(0.0),
+            rt.z_axis.extend(0.0),
+            t.extend(1.0),
+        ))
     }
     /// Largest deviation of R^T R from I and of the last row from (0,0,0,1); ~0 for rigid.
     pub fn rigid_error(&self) -> f64 {

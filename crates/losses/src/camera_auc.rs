@@ -1,6 +1,7 @@
-//! Camera pose AUC@30 as VGGT's `evaluation/test_co3d.py` computes it (model.md §4.3).
+//! Camera pose AUC@30 as VGGT's `evaluation/test_co3d.py` computes it (paper §4).
 
 use crate::error::{LossError, Result};
+use glam::{DMat3, DMat4, DVec3};
 
 /// A world-to-camera extrinsic `[R | t]` (3 rows of 4, OpenCV axes), as returned by
 /// `pose_encoding_to_extri_intri`.
@@ -38,7 +39,7 @@ impl PairError {
 /// Definition (VGGT `test_co3d.py`): both sets of world-to-camera `E` are first aligned to
 /// their first camera (`E_k ← E_k · E_0⁻¹`, `align_to_first_camera`); the relative pose of a
 /// pair is then `E_i⁻¹ · E_j` (`se3_to_relative_pose_error`), for prediction and ground truth
-/// alike. (model.md §4.3 writes `E_i·E_j⁻¹`; VGGT's code computes `E_i⁻¹·E_j` after the
+/// alike. (A textbook statement writes `E_i·E_j⁻¹`; VGGT's code computes `E_i⁻¹·E_j` after the
 /// alignment, and that is what is implemented.)
 /// * Rotation: `err_R = arccos(1 − 2·max(1 − ⟨q_pred, q_gt⟩², 1e-15))`, where
 ///   `⟨q_pred, q_gt⟩² = (1 + tr(R_gtᵀ R_pred)) / 4` is the squared quaternion dot product
@@ -140,75 +141,48 @@ pub fn camera_auc30(pred: &[Extrinsic], gt: &[Extrinsic]) -> Result<f64> {
     auc_from_errors(&errors, AUC_MAX_THRESHOLD_DEG)
 }
 
-type Mat3 = [[f64; 3]; 3];
-type Mat4 = [[f64; 4]; 4];
-
-/// `[R | t]` as a homogeneous 4×4 matrix.
-fn homogeneous(e: &Extrinsic) -> Mat4 {
-    [e[0], e[1], e[2], [0.0, 0.0, 0.0, 1.0]]
+/// `[R | t]` as a homogeneous transform.
+fn homogeneous(e: &Extrinsic) -> DMat4 {
+    DMat4::from_cols_array_2d(&[e[0], e[1], e[2], [0.0, 0.0, 0.0, 1.0]]).transpose()
 }
 
 /// VGGT's `closed_form_inverse_se3`: `[Rᵀ | −Rᵀt]`.
-fn inverse_se3(m: &Mat4) -> Mat4 {
-    let mut out = [[0.0; 4]; 4];
-    for r in 0..3 {
-        for c in 0..3 {
-            out[r][c] = m[c][r];
-        }
-        out[r][3] = -(0..3).map(|k| m[k][r] * m[k][3]).sum::<f64>();
-    }
-    out[3][3] = 1.0;
-    out
-}
-
-fn matmul(a: &Mat4, b: &Mat4) -> Mat4 {
-    let mut out = [[0.0; 4]; 4];
-    for (r, row) in out.iter_mut().enumerate() {
-        for (c, v) in row.iter_mut().enumerate() {
-            *v = (0..4).map(|k| a[r][k] * b[k][c]).sum();
-        }
-    }
-    out
+fn inverse_se3(m: &DMat4) -> DMat4 {
+    let rt = DMat3::from_mat4(*m).transpose();
+    let t = -(rt * m.w_axis.truncate());
+    DMat4::from_cols(
+        rt.x_axis.extend(0.0),
+        rt.y_axis.extend(0.0),
+        rt.z_axis.extend(0.0),
+        t.extend(1.0),
+    )
 }
 
 /// VGGT's `align_to_first_camera`: `E_k · E_0⁻¹`, so the first camera becomes the world
 /// frame and the errors no longer depend on the world frame.
-fn align_to_first(set: &[Extrinsic]) -> Vec<Mat4> {
+fn align_to_first(set: &[Extrinsic]) -> Vec<DMat4> {
     let first_inv = inverse_se3(&homogeneous(&set[0]));
-    set.iter()
-        .map(|e| matmul(&homogeneous(e), &first_inv))
-        .collect()
+    set.iter().map(|e| homogeneous(e) * first_inv).collect()
 }
 
 /// `E_a⁻¹ · E_b` as rotation and translation.
-fn relative(a: &Mat4, b: &Mat4) -> (Mat3, [f64; 3]) {
-    let m = matmul(&inverse_se3(a), b);
-    let r = [
-        [m[0][0], m[0][1], m[0][2]],
-        [m[1][0], m[1][1], m[1][2]],
-        [m[2][0], m[2][1], m[2][2]],
-    ];
-    (r, [m[0][3], m[1][3], m[2][3]])
+fn relative(a: &DMat4, b: &DMat4) -> (DMat3, DVec3) {
+    let m = inverse_se3(a) * *b;
+    (DMat3::from_mat4(m), m.w_axis.truncate())
 }
 
-fn rotation_error_deg(gt: &Mat3, pred: &Mat3) -> f64 {
-    // tr(gtᵀ·pred) = Σ gt ⊙ pred.
-    let trace: f64 = (0..3)
-        .flat_map(|r| (0..3).map(move |c| (r, c)))
-        .map(|(r, c)| gt[r][c] * pred[r][c])
-        .sum();
+fn rotation_error_deg(gt: &DMat3, pred: &DMat3) -> f64 {
+    // tr(gtᵀ·pred) = Σ gt ⊙ pred, column by column.
+    let trace = gt.x_axis.dot(pred.x_axis) + gt.y_axis.dot(pred.y_axis) + gt.z_axis.dot(pred.z_axis);
     let dot_sq = ((1.0 + trace) / 4.0).clamp(0.0, 1.0);
     let loss = (1.0 - dot_sq).max(ANGLE_EPS);
     (1.0 - 2.0 * loss).clamp(-1.0, 1.0).acos().to_degrees()
 }
 
-fn translation_error_deg(gt: &[f64; 3], pred: &[f64; 3]) -> f64 {
-    let unit = |t: &[f64; 3]| {
-        let n = t.iter().map(|v| v * v).sum::<f64>().sqrt();
-        t.map(|v| v / (n + ANGLE_EPS))
-    };
-    let (a, b) = (unit(gt), unit(pred));
-    let dot: f64 = (0..3).map(|k| a[k] * b[k]).sum();
+fn translation_error_deg(gt: &DVec3, pred: &DVec3) -> f64 {
+    // VGGT divides by `|t| + ε` (not glam's `normalize`), so a zero translation stays finite.
+    let unit = |t: &DVec3| *t / (t.length() + ANGLE_EPS);
+    let dot = unit(gt).dot(unit(pred));
     let loss = (1.0 - dot * dot).max(ANGLE_EPS);
     let err = (1.0 - loss).sqrt().acos().to_degrees();
     let err = if err.is_finite() {

@@ -64,7 +64,7 @@ pub fn depth_rmse(
             pred.map(i)
                 .iter()
                 .zip(gt.map(i))
-                .filter(|(_, &g)| g > 0.0)
+                .filter(|&(_, &g)| g > 0.0)
                 .map(|(&p, &g)| (p, g))
                 .collect()
         })

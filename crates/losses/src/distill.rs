@@ -7,7 +7,7 @@ use crate::error::{LossError, Result};
 
 /// λ_cam of the paper (§4, implementation details).
 pub const CAMERA_DISTILL_WEIGHT: f64 = 5.0;
-/// λ_depth: the paper gives none; 1.0 is the documented default (model.md §3).
+/// λ_depth: the paper gives none; 1.0 (`docs/MODEL.md`, "where the paper is silent").
 pub const DEPTH_DISTILL_WEIGHT: f64 = 1.0;
 
 /// Weights of the two distillation terms.
@@ -41,7 +41,7 @@ pub struct DistillTerms {
 
 /// `L_cam = ‖P − P_teacher‖₁`, the mean absolute difference over every element of the 9-d
 /// pose encodings (`absT_quaR_FoV`, `[..., 9]`, all frames of the clip; mean over frames and
-/// dims, model.md §3). The teacher is detached. Returns a scalar `[1]`.
+/// dims, as the release). The teacher is detached. Returns a scalar `[1]`.
 pub fn camera_distill<const D: usize>(pose: Tensor<D>, teacher: Tensor<D>) -> Result<Tensor<1>> {
     check_pose_shape(&pose)?;
     l1_mean("camera distillation", pose, teacher)
@@ -83,10 +83,27 @@ pub fn camera_distill_weighted<const D: usize>(
     Ok(((pose - teacher.detach()).abs() * w).mean())
 }
 
-/// `L_depth = ‖D − D_teacher‖₁`, the mean absolute difference over the context depth maps
-/// (any shape, e.g. `[B, S, H, W, 1]`). The teacher is detached. Returns a scalar `[1]`.
+/// `L_depth`: the mean absolute difference between the student's and the teacher's context
+/// depth maps `[B, ...]` (e.g. `[B, S, H, W, 1]`) over pixels where the teacher has a depth
+/// (`> 0`: the synthetic sky and LiDAR holes have 0). The mean is taken per sample, then over
+/// the batch, so a batch's loss is the mean of its samples' losses and data-parallel shards
+/// add up to exactly the single-device loss whatever their sky fractions. The teacher is
+/// detached. Returns a scalar `[1]`.
 pub fn depth_distill<const D: usize>(depth: Tensor<D>, teacher: Tensor<D>) -> Result<Tensor<1>> {
-    l1_mean("depth distillation", depth, teacher)
+    crate::mse::check_same("depth distillation", "a non-empty tensor", &depth, &teacher)?;
+    let teacher = teacher.detach();
+    let b = depth.dims()[0];
+    // The mask in the inputs' dtype (a bare `float()` is the default dtype, f32).
+    let mask = teacher
+        .clone()
+        .greater_elem(0.0)
+        .float()
+        .cast(teacher.dtype());
+    let err = ((depth - teacher).abs() * mask.clone())
+        .reshape([b as i32, -1])
+        .sum_dim(1);
+    let count = mask.reshape([b as i32, -1]).sum_dim(1).clamp_min(1.0);
+    Ok((err / count).mean().reshape([1]))
 }
 
 /// Both terms and their weighted sum.
@@ -126,7 +143,8 @@ fn check_pose_shape<const D: usize>(pose: &Tensor<D>) -> Result<()> {
     Ok(())
 }
 
-/// Width of a pose encoding: translation 3, quaternion 4, FoV 2.
+/// Width of a pose encoding: translation 3, quaternion 4, FoV 2 (the layout of the model
+/// crate's `pose` module; this crate does not depend on the model).
 const POSE_ENCODING_DIM: usize = 9;
 /// Where the quaternion sits in a pose encoding.
 const QUATERNION_ENTRIES: std::ops::Range<usize> = 3..7;

@@ -59,6 +59,21 @@ pub enum LossError {
     Readback { what: &'static str, reason: String },
 }
 
+impl LossError {
+    /// Whether the user can fix this by changing a file or setting they gave (an LPIPS
+    /// weights file, asking for LPIPS without weights), rather than a bug or a diverged
+    /// model: the CLI's exit code 2 against 1.
+    pub fn is_input(&self) -> bool {
+        matches!(
+            self,
+            LossError::WeightsFile { .. }
+                | LossError::MissingKey { .. }
+                | LossError::WeightShape { .. }
+                | LossError::LpipsUnavailable { .. }
+        )
+    }
+}
+
 /// Shorthand used throughout the crate.
 pub type Result<T> = std::result::Result<T, LossError>;
 

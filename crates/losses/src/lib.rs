@@ -40,7 +40,7 @@ pub use evaluate::{evaluate_images, ImageMetrics};
 pub use host::{HostDepths, HostImages};
 pub use lpips::{Lpips, LpipsNet, LpipsStatus, LpipsWeights};
 pub use mse::mse_per_frame;
-pub use psnr::psnr;
+pub use psnr::{psnr, psnr_from_mse};
 pub use rgb::{RgbLoss, RgbTerms, LPIPS_LOSS_WEIGHT};
 pub use ssim::{ssim, SSIM_WIN_SIZE};
 pub use ssim_loss::ssim_per_frame;

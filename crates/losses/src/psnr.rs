@@ -28,10 +28,15 @@ pub fn psnr(pred: &HostImages, gt: &HostImages) -> Result<Vec<f64>> {
                     d * d
                 })
                 .sum();
-            let mse = sum / p.len() as f64;
-            -10.0 * mse.log10()
+            psnr_from_mse(sum / p.len() as f64)
         })
         .collect())
+}
+
+/// PSNR (dB) of images in [0, 1] from their mean squared error: `−10·log10(mse)` (the data
+/// range is 1). `+inf` for `mse = 0`. The one formula [`psnr`] and the training log share.
+pub fn psnr_from_mse(mse: f64) -> f64 {
+    -10.0 * mse.log10()
 }
 
 /// Shape check shared by the image metrics.

@@ -2,6 +2,7 @@
 //! transformer trunk (4 iterations). Prefix `camera_head.`.
 
 use crate::config::{CAMERA_ITERATIONS, CAMERA_TRUNK_DEPTH, MLP_RATIO, POSE_ENC_DIM};
+use crate::pose::{FOV, QUATERNION, TRANSLATION};
 use crate::layers::{Block, BlockSpec, Mlp, QkNorm, BLOCK_NORM_EPS};
 use burn::module::{Module, Param};
 use burn::nn::{LayerNorm, LayerNormConfig, Linear, LinearConfig};
@@ -97,10 +98,35 @@ impl CameraHead {
     }
 }
 
+impl CameraHead {
+    /// Sets the last layer so a fresh head predicts the identity pose with both FoVs
+    /// `fov_rad`: the head sums its [`CAMERA_ITERATIONS`] refinement deltas, so the bias is
+    /// that share of `[t = 0, q = (0, 0, 0, 1), fov, fov]`, and the weight is scaled by
+    /// `weight_scale` (small, as AdaLN-zero-style output layers are).
+    pub fn init_identity_pose(&mut self, fov_rad: f32, weight_scale: f64) {
+        let fc2 = &mut self.pose_branch.fc2;
+        let device = fc2.weight.device();
+        fc2.weight = Param::from_tensor(
+            fc2.weight
+                .val()
+                .detach()
+                .mul_scalar(weight_scale)
+                .detach(),
+        );
+        let k = CAMERA_ITERATIONS as f32;
+        let mut bias = [0.0f32; POSE_ENC_DIM];
+        bias[QUATERNION.end - 1] = 1.0 / k;
+        for c in FOV {
+            bias[c] = fov_rad / k;
+        }
+        fc2.bias = Some(Param::from_tensor(Tensor::<1>::from_floats(bias, &device)));
+    }
+}
+
 /// Translation and quaternion linear, field of view ReLU.
 pub fn activate_pose(e: Tensor<3>) -> Tensor<3> {
     let [b, n, _] = e.dims();
-    let tq = e.clone().slice([0..b, 0..n, 0..7]);
-    let fov = relu(e.slice([0..b, 0..n, 7..9]));
+    let tq = e.clone().slice([0..b, 0..n, TRANSLATION.start..QUATERNION.end]);
+    let fov = relu(e.slice([0..b, 0..n, FOV]));
     Tensor::cat(vec![tq, fov], 2)
 }

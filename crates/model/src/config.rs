@@ -127,7 +127,7 @@ pub const CAMERA_ITERATIONS: usize = 4;
 /// Width of the sinusoidal time embedding fed to `time_embedding`.
 pub const TIME_SINUSOID_DIM: usize = 256;
 /// Pose encoding `absT_quaR_FoV`: translation 3, quaternion (x, y, z, w) 4, FoV (h, w) 2.
-pub const POSE_ENC_DIM: usize = 9;
+pub const POSE_ENC_DIM: usize = crate::pose::POSE_ENCODING_DIM;
 /// Raw Gaussian channels: opacity 1, scale 3, rotation 4, colour 3.
 pub const GAUSSIAN_DIM: usize = 11;
 

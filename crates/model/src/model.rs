@@ -177,6 +177,34 @@ impl Envision4d {
         }
     }
 
+    /// `T_f`: the number of learned future seeds (future frames a forward predicts).
+    pub fn future_frames(&self) -> usize {
+        self.future.extra_token_offset.dims()[1]
+    }
+
+    /// The device the parameters live on (inputs are created there).
+    pub fn device(&self) -> Device {
+        self.future.extra_token_offset.val().device()
+    }
+
+    /// The same network predicting only its first `horizon` future frames (its first
+    /// `horizon` learned future seeds; the rest is shared). `None` unless
+    /// `1 <= horizon <= T_f`.
+    pub fn with_horizon(&self, horizon: usize) -> Option<Envision4d> {
+        let [one, tf, width] = self.future.extra_token_offset.dims();
+        if horizon == 0 || horizon > tf {
+            return None;
+        }
+        let mut m = self.clone();
+        let seeds = m
+            .future
+            .extra_token_offset
+            .val()
+            .slice([0..one, 0..horizon, 0..width]);
+        m.future.extra_token_offset = burn::module::Param::from_tensor(seeds);
+        Some(m)
+    }
+
     /// World-space Gaussians of the context frames (needs the depth, Gaussian and motion
     /// heads). `step` drives the opacity schedule (identity for the released config).
     pub fn adapt(

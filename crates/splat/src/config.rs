@@ -42,6 +42,18 @@ impl AlphaClamp {
     }
 }
 
+/// How the GPU backward accumulates per-Gaussian gradients across pixels.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum GradAccumulation {
+    /// Native float atomics where the device has them, compare-and-swap otherwise.
+    #[default]
+    Auto,
+    /// Always the compare-and-swap loop (the path of devices without float atomics; chosen
+    /// explicitly to check it on a device that has them).
+    CompareAndSwap,
+}
+
 /// The rasterizer's numeric settings. `RasterConfig::default()` is gsplat 1.5.3.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -62,6 +74,9 @@ pub struct RasterConfig {
     pub depth_eps: f64,
     /// Background colour composited behind the Gaussians (`None` = black, gsplat's default).
     pub background: Option<[f64; 3]>,
+    /// Gradient accumulation of the GPU backward (results agree; not part of a report).
+    #[serde(skip)]
+    pub grad_accumulation: GradAccumulation,
 }
 
 impl Default for RasterConfig {
@@ -75,6 +90,7 @@ impl Default for RasterConfig {
             transmittance_min: 1e-4,
             depth_eps: 1e-10,
             background: None,
+            grad_accumulation: GradAccumulation::Auto,
         }
     }
 }

@@ -21,7 +21,7 @@ pub mod ply;
 pub mod real;
 
 pub use camera::{Camera, CameraError};
-pub use config::{AlphaClamp, RasterConfig, TILE_SIZE};
+pub use config::{AlphaClamp, GradAccumulation, RasterConfig, TILE_SIZE};
 pub mod backend;
 pub mod render;
 

@@ -224,8 +224,3 @@ pub fn conic_vjp<F: Real>(q: &Sym2<F>, g: [F; 3]) -> Sym2<F> {
         c: -(qg10 * q.b + qg11 * q.c),
     }
 }
-
-/// A symmetric 2x2 gradient as the full 2x2 matrix it stands for.
-pub fn sym2_full<F: Real>(s: &Sym2<F>) -> [[F; 2]; 2] {
-    [[s.a, s.b], [s.b, s.c]]
-}

@@ -6,7 +6,7 @@
 //! same for frames (0, 1), (0, 0) and (1, 0)). Playing some windows backwards or frozen
 //! gives the same frames the opposite motion or none, which only a comparison explains.
 
-use crate::batch::HostClip;
+use envision4d_data::HostClip;
 use crate::config::Augment;
 use envision4d_data::rng::Rng;
 

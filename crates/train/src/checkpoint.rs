@@ -4,7 +4,7 @@
 //! name and renamed into place, so a crash never leaves a half checkpoint under a real name;
 //! only the newest `keep` survive.
 
-use crate::error::{io, Result, TrainError};
+use crate::error::{read, written, Result, TrainError};
 use crate::step::Trainer;
 use burn::module::{Module, ModuleMapper, ModuleVisitor, Param, ParamId};
 use burn::optim::OptimizerRecord;
@@ -48,8 +48,8 @@ pub fn list(root: &Path) -> Result<Vec<(u64, PathBuf)>> {
         return Ok(vec![]);
     }
     let mut out = vec![];
-    for e in std::fs::read_dir(root).map_err(io(root))? {
-        let e = e.map_err(io(root))?;
+    for e in std::fs::read_dir(root).map_err(read(root))? {
+        let e = e.map_err(read(root))?;
         let name = e.file_name().to_string_lossy().to_string();
         if let Some(step) = name.strip_prefix(DIR_PREFIX).and_then(|s| s.parse().ok()) {
             if e.path().join(STATE_FILE).is_file() {
@@ -111,7 +111,7 @@ impl ModuleMapper for SetIds<'_> {
 pub fn restore_param_ids(model: Envision4d, ids: &[u64]) -> Result<Envision4d> {
     let have = param_ids(&model).len();
     if have != ids.len() {
-        return Err(TrainError::Model(format!(
+        return Err(TrainError::Unusable(format!(
             "checkpoint has {} parameter ids, the model has {have}: a different architecture",
             ids.len()
         )));
@@ -123,7 +123,7 @@ pub fn restore_param_ids(model: Envision4d, ids: &[u64]) -> Result<Envision4d> {
 /// just written always stays; only older steps are pruned). `config_identity` is
 /// [`resume_identity`] of the run's config.
 pub fn save(trainer: &Trainer, root: &Path, keep: usize, config_identity: &str) -> Result<PathBuf> {
-    std::fs::create_dir_all(root).map_err(io(root))?;
+    std::fs::create_dir_all(root).map_err(written(root))?;
     let final_dir = step_dir(root, trainer.step);
     let tmp = root.join(format!(
         ".tmp-{DIR_PREFIX}{:08}-{}",
@@ -131,17 +131,18 @@ pub fn save(trainer: &Trainer, root: &Path, keep: usize, config_identity: &str) 
         std::process::id()
     ));
     if tmp.exists() {
-        std::fs::remove_dir_all(&tmp).map_err(io(&tmp))?;
+        std::fs::remove_dir_all(&tmp).map_err(written(&tmp))?;
     }
-    std::fs::create_dir_all(&tmp).map_err(io(&tmp))?;
+    std::fs::create_dir_all(&tmp).map_err(written(&tmp))?;
     let write = || -> Result<()> {
-        save_checkpoint(&trainer.model, &trainer.config.model, &tmp.join(MODEL_FILE))
-            .map_err(|e| TrainError::Model(e.to_string()))?;
+        let mp = tmp.join(MODEL_FILE);
+        save_checkpoint(&trainer.model, &trainer.config.model, &mp)
+            .map_err(|e| TrainError::write(&mp, e))?;
         let opt = tmp.join(OPTIMIZER_FILE);
         trainer
             .optimizer_record()
             .save(&opt)
-            .map_err(|e| TrainError::Model(format!("{}: {e:?}", opt.display())))?;
+            .map_err(|e| TrainError::write(&opt, format!("{e:?}")))?;
         let state = RunState {
             step: trainer.step,
             skipped: trainer.skipped,
@@ -152,9 +153,9 @@ pub fn save(trainer: &Trainer, root: &Path, keep: usize, config_identity: &str) 
             config: config_identity.to_string(),
         };
         let json =
-            serde_json::to_string_pretty(&state).map_err(|e| TrainError::Model(e.to_string()))?;
+            serde_json::to_string_pretty(&state).map_err(|e| TrainError::Internal(e.to_string()))?;
         let sp = tmp.join(STATE_FILE);
-        std::fs::write(&sp, json).map_err(io(&sp))
+        std::fs::write(&sp, json).map_err(written(&sp))
     };
     if let Err(e) = write() {
         let _ = std::fs::remove_dir_all(&tmp);
@@ -168,11 +169,11 @@ pub fn save(trainer: &Trainer, root: &Path, keep: usize, config_identity: &str) 
             trainer.step,
             std::process::id()
         ));
-        std::fs::rename(&final_dir, &aside).map_err(io(&final_dir))?;
-        std::fs::rename(&tmp, &final_dir).map_err(io(&final_dir))?;
+        std::fs::rename(&final_dir, &aside).map_err(written(&final_dir))?;
+        std::fs::rename(&tmp, &final_dir).map_err(written(&final_dir))?;
         let _ = std::fs::remove_dir_all(&aside);
     } else {
-        std::fs::rename(&tmp, &final_dir).map_err(io(&final_dir))?;
+        std::fs::rename(&tmp, &final_dir).map_err(written(&final_dir))?;
     }
     let older: Vec<PathBuf> = list(root)?
         .into_iter()
@@ -181,7 +182,7 @@ pub fn save(trainer: &Trainer, root: &Path, keep: usize, config_identity: &str) 
         .collect();
     let excess = (older.len() + 1).saturating_sub(keep.max(1));
     for old in older.iter().take(excess) {
-        std::fs::remove_dir_all(old).map_err(io(old))?;
+        std::fs::remove_dir_all(old).map_err(written(old))?;
     }
     Ok(final_dir)
 }
@@ -189,34 +190,36 @@ pub fn save(trainer: &Trainer, root: &Path, keep: usize, config_identity: &str) 
 /// Restores model, optimiser state, step and counters from checkpoint `dir` into `trainer`.
 pub fn restore(trainer: &mut Trainer, dir: &Path) -> Result<RunState> {
     let sp = dir.join(STATE_FILE);
-    let text = std::fs::read_to_string(&sp).map_err(io(&sp))?;
+    let text = std::fs::read_to_string(&sp).map_err(read(&sp))?;
     let state: RunState = serde_json::from_str(&text).map_err(|e| TrainError::Parse {
         path: sp.clone(),
         message: e.to_string(),
     })?;
     if state.config != resume_identity(&trainer.config) {
-        return Err(TrainError::Input(format!(
-            "--resume {}: the config differs from the run's:\n{}",
-            dir.display(),
-            config_diff(&resume_identity(&trainer.config), &state.config)
-        )));
+        return Err(TrainError::checkpoint(
+            dir,
+            format!(
+                "--resume: the config differs from the run's:\n{}",
+                config_diff(&resume_identity(&trainer.config), &state.config)
+            ),
+        ));
     }
     let mp = dir.join(MODEL_FILE);
     let mut model = trainer.model.clone();
     load_checkpoint(&mut model, &mp, CheckpointKind::Full)
-        .map_err(|e| TrainError::Model(format!("{}: {e}", mp.display())))?;
+        .map_err(|e| TrainError::checkpoint(&mp, e))?;
     let shapes = param_shapes(&model);
     if shapes != state.param_shapes {
-        return Err(TrainError::Input(format!(
-            "--resume {}: the checkpoint's parameter shapes differ from this model's (another architecture)",
-            dir.display()
-        )));
+        return Err(TrainError::checkpoint(
+            dir,
+            "--resume: the checkpoint's parameter shapes differ from this model's (another architecture)",
+        ));
     }
     trainer.model = restore_param_ids(model, &state.param_ids)?;
     trainer.refresh_split();
     let op = dir.join(OPTIMIZER_FILE);
     let record = OptimizerRecord::load(&op)
-        .map_err(|e| TrainError::Model(format!("{}: {e:?}", op.display())))?;
+        .map_err(|e| TrainError::checkpoint(&op, format!("{e:?}")))?;
     trainer.load_optimizer_record(record);
     trainer.step = state.step;
     trainer.skipped = state.skipped;
@@ -273,9 +276,9 @@ pub fn set_aside_newer(root: &Path, step: u64) -> Result<()> {
         if s > step {
             let aside = root.join(format!(".abandoned-{DIR_PREFIX}{s:08}"));
             if aside.exists() {
-                std::fs::remove_dir_all(&aside).map_err(io(&aside))?;
+                std::fs::remove_dir_all(&aside).map_err(written(&aside))?;
             }
-            std::fs::rename(&p, &aside).map_err(io(&p))?;
+            std::fs::rename(&p, &aside).map_err(written(&p))?;
         }
     }
     Ok(())

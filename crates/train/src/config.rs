@@ -1,6 +1,6 @@
 //! The training configuration (TOML). Every section denies unknown keys, so a typo is an
 //! error naming the key. Defaults are the paper's values (§4 implementation details,
-//! model.md §3); `configs/waymo.toml` spells them all out.
+//! and `docs/MODEL.md` where the paper is silent); `configs/waymo.toml` spells them all out.
 
 use envision4d_model::ModelConfig;
 use serde::{Deserialize, Serialize};
@@ -15,7 +15,7 @@ pub const PAPER_S_MAX: u64 = 50_000;
 pub const PAPER_ALPHA0: f64 = 1.0;
 /// Adam's ε in PyTorch (the reference's optimiser).
 pub const PYTORCH_ADAM_EPSILON: f64 = 1e-8;
-/// STORM's grad-norm clip (the paper states none); model.md §3 "STORM's training loop".
+/// STORM's grad-norm clip (the paper states none; `docs/MODEL.md`).
 pub const DEFAULT_GRAD_CLIP: f64 = 3.0;
 
 /// Which network is trained.
@@ -120,7 +120,7 @@ impl Default for LossConfig {
     }
 }
 
-/// Where the α annealing clock `s'` starts (the paper is ambiguous, model.md §3).
+/// Where the α annealing clock `s'` starts (the paper is ambiguous, `docs/MODEL.md`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum AnnealOrigin {
@@ -283,7 +283,7 @@ pub enum FreezeGroup {
 }
 
 impl FreezeGroup {
-    /// The paper's frozen set (model.md §3 "Model state"); the depth head stays trainable.
+    /// The paper's frozen set (§4; `docs/MODEL.md`); the depth head stays trainable.
     pub const PAPER: [FreezeGroup; 5] = [
         FreezeGroup::PatchEmbed,
         FreezeGroup::FrameBlocks,

@@ -3,7 +3,7 @@
 
 use crate::config::{Stage, TrainConfig};
 use crate::error::{Result, TrainError};
-use burn::tensor::{Device, Tensor};
+use burn::tensor::Device;
 use envision4d_model::aggregator::Aggregator;
 use envision4d_model::checkpoint::CheckpointKind;
 use envision4d_model::config::{MotionModel, TemporalPlacement};
@@ -24,30 +24,9 @@ pub const POSE_OUTPUT_INIT_SCALE: f64 = 1e-3;
 /// layer's bias is a quarter of `[t = 0, q = (0, 0, 0, 1), fov_h, fov_w]` and its weight is
 /// shrunk (as AdaLN-zero-style output layers are).
 pub fn identity_pose_init(model: &mut Envision4d) {
-    use burn::module::Param;
-    use envision4d_model::config::CAMERA_ITERATIONS;
-    let fc2 = &mut model.camera_head.pose_branch.fc2;
-    let device = fc2.weight.device();
-    fc2.weight = Param::from_tensor(
-        fc2.weight
-            .val()
-            .detach()
-            .mul_scalar(POSE_OUTPUT_INIT_SCALE)
-            .detach(),
-    );
-    let k = CAMERA_ITERATIONS as f32;
-    let bias = [
-        0.0,
-        0.0,
-        0.0,
-        0.0,
-        0.0,
-        0.0,
-        1.0 / k,
-        INITIAL_FOV_RAD / k,
-        INITIAL_FOV_RAD / k,
-    ];
-    fc2.bias = Some(Param::from_tensor(Tensor::<1>::from_floats(bias, &device)));
+    model
+        .camera_head
+        .init_identity_pose(INITIAL_FOV_RAD, POSE_OUTPUT_INIT_SCALE);
 }
 
 /// The model of a config, from `init_checkpoint` when given.
@@ -81,7 +60,7 @@ fn init_from(
     paper.temporal_attention = TemporalPlacement::default();
     let mut base = Envision4d::new(&paper, device);
     envision4d_model::checkpoint::load_checkpoint(&mut base, path, CheckpointKind::Vggt1bInit)
-        .map_err(|e| TrainError::Input(format!("init_checkpoint {}: {e}", path.display())))?;
+        .map_err(|e| TrainError::checkpoint(path, format!("init_checkpoint: {e}")))?;
     if paper == config.model {
         return Ok(base);
     }

@@ -1,28 +1,27 @@
-//! `envision4d-train`: training of Envision4D (paper §3.4, issue 6).
+//! `envision4d-train`: training of Envision4D (paper §3.4).
 //!
-//! - [`config`]: the TOML training configuration (every paper hyper-parameter).
-//! - [`schedule`]: the progressive schedule (warm-up, α annealing, frame weights, cosine lr).
-//! - [`freeze`]: frozen parameter groups and parameter counts.
-//! - [`batch`]: training batches and ground-truth teacher targets.
-//! - [`step`]: the training step of either stage (self-exclusive rendering, losses, Adam).
-//! - [`backbone`]: the backbone stage's supervised loss and the frozen teacher.
-//! - [`infer`]: forward + safe cameras + adapted Gaussians, shared with eval and render.
-//! - [`data`]: datasets and splits of a config, clips as host buffers; [`augment`]: playback
-//!   augmentation of training windows.
-//! - [`run`]: the run loop (log, validation, checkpoints, resume, NaN guard), [`log`],
-//!   [`checkpoint`], [`validate`].
-
+//! - [`config`] / [`load`]: the TOML training configuration (every paper hyper-parameter).
+//! - [`schedule`]: the progressive schedule as a [`PhasePlan`] per step (warm-up, α
+//!   annealing, frame weights) and the cosine learning rate.
+//! - [`step`]: the training step of either stage: `L_rgb` of the plan's renders through the
+//!   model's scene path, plus [`distill`]ation, then Adam; [`backbone`]: the backbone stage's
+//!   supervised loss; [`grad_clip`]: global-norm gradient clipping; [`freeze`]: the frozen
+//!   parameter groups.
+//! - [`distill`]: self-distillation: label source, the frozen teacher, `L_cam` and `L_depth`.
+//! - [`batch`]: training batches and their ground-truth labels; [`dataset`]: the config's
+//!   dataset and splits; [`augment`]: playback augmentation of training windows.
+//! - [`run`]: the run loop (prefetch, log, validation, checkpoints, resume, NaN guard),
+//!   [`log`], [`checkpoint`], [`validate`] (scored with `envision4d-eval`).
 pub mod augment;
 pub mod backbone;
 pub mod batch;
 pub mod checkpoint;
-pub mod clip;
 pub mod config;
-pub mod data;
+pub mod dataset;
+pub mod distill;
 pub mod error;
-pub mod eval;
 pub mod freeze;
-pub mod infer;
+pub mod grad_clip;
 pub mod init;
 pub mod load;
 pub mod log;
@@ -35,5 +34,5 @@ pub mod validate;
 pub use config::TrainConfig;
 pub use error::{Result, TrainError};
 pub use load::{load, parse};
-pub use schedule::{frame_weights, Phase, Schedule};
+pub use schedule::{frame_weights, Phase, PhasePlan, Schedule};
 pub use step::{StepOutcome, StepReport, Trainer};

@@ -10,7 +10,7 @@ use std::path::Path;
 
 /// Parses and validates a training config file.
 pub fn load(path: &Path) -> Result<TrainConfig> {
-    let text = std::fs::read_to_string(path).map_err(crate::error::io(path))?;
+    let text = std::fs::read_to_string(path).map_err(crate::error::read(path))?;
     parse(&text, path)
 }
 

@@ -1,7 +1,7 @@
 //! The run's JSONL log: one JSON object per logged step, validation and checkpoint. On
 //! resume, records at or after the resumed step are dropped so the log continues exactly.
 
-use crate::error::{io, Result, TrainError};
+use crate::error::{read, written, Result, TrainError};
 use crate::step::{StepOutcome, StepReport};
 use crate::validate::ValReport;
 use serde_json::{json, Value};
@@ -42,20 +42,20 @@ impl JsonlLog {
     /// Opens `path` for appending, first keeping only records of steps before `from_step`.
     pub fn open(path: &Path, from_step: u64) -> Result<JsonlLog> {
         if path.exists() {
-            let text = std::fs::read_to_string(path).map_err(io(path))?;
+            let text = std::fs::read_to_string(path).map_err(read(path))?;
             let kept: String = text
                 .lines()
                 .filter(|l| keep_record(l, from_step))
                 .map(|l| format!("{l}\n"))
                 .collect();
             envision4d_data::atomic::write_bytes(path, kept.as_bytes())
-                .map_err(|e| TrainError::Batch(e.to_string()))?;
+                .map_err(|e| TrainError::write(path, e))?;
         }
         let file = std::fs::OpenOptions::new()
             .create(true)
             .append(true)
             .open(path)
-            .map_err(io(path))?;
+            .map_err(written(path))?;
         Ok(JsonlLog {
             path: path.to_path_buf(),
             file,
@@ -63,7 +63,7 @@ impl JsonlLog {
     }
 
     fn write(&mut self, v: Value) -> Result<()> {
-        writeln!(self.file, "{v}").map_err(io(&self.path))
+        writeln!(self.file, "{v}").map_err(written(&self.path))
     }
 
     pub fn step(&mut self, r: &StepReport, seconds: f64, steps_per_second: f64) -> Result<()> {
@@ -90,7 +90,7 @@ impl JsonlLog {
     }
 
     pub fn validation(&mut self, v: &ValReport) -> Result<()> {
-        let mut value = serde_json::to_value(v).map_err(|e| TrainError::Batch(e.to_string()))?;
+        let mut value = serde_json::to_value(v).map_err(|e| TrainError::Internal(e.to_string()))?;
         value["kind"] = json!("validation");
         self.write(value)
     }

@@ -12,6 +12,7 @@ use crate::step::{scalar, LossTerms, StepOutcome, StepReport, Trainer};
 use burn::module::Module;
 use burn::optim::{GradientsAccumulator, GradientsParams};
 use burn::tensor::Device;
+use envision4d_losses::psnr_from_mse;
 use envision4d_model::Envision4d;
 
 /// Host values of one shard's loss terms.
@@ -54,7 +55,7 @@ impl Trainer {
         step: u64,
     ) -> Result<ParallelGradients> {
         if shards.is_empty() || shards.len() != devices.len() {
-            return Err(TrainError::Batch(format!(
+            return Err(TrainError::Internal(format!(
                 "{} shards for {} devices",
                 shards.len(),
                 devices.len()
@@ -96,7 +97,7 @@ impl Trainer {
         let psnr = vals
             .iter()
             .all(|v| v.mse.is_some())
-            .then(|| -10.0 * mean(|v| v.mse.unwrap_or(f64::NAN)).log10());
+            .then(|| psnr_from_mse(mean(|v| v.mse.unwrap_or(f64::NAN))));
         Ok(ParallelGradients::Ready {
             grads: acc.grads(),
             report: StepReport {

@@ -1,20 +1,21 @@
-//! A training run: data order, steps, JSONL log, validation, checkpoints, resume and the
-//! NaN guard. Progress display is the caller's ([`Observer`]); everything a run needs to be
+//! A training run: data order (decoded ahead on a worker thread), steps, JSONL log,
+//! validation, checkpoints, resume and the NaN guard. Progress display is the caller's ([`Observer`]); everything a run needs to be
 //! continued or audited is on disk under `run.out_dir`.
 
 use crate::augment;
-use crate::batch::{Batch, HostClip};
+use crate::batch::Batch;
 use crate::checkpoint::{self, MODEL_FILE};
 use crate::config::{Stage, Teacher, TrainConfig};
-use crate::data::{open_dataset, split};
+use crate::dataset::{open_dataset, split};
 use crate::error::{Result, TrainError};
 use crate::log::JsonlLog;
 use crate::step::{StepReport, Trainer};
 use crate::validate::{validate, ValReport};
 use burn::tensor::Device;
 use envision4d_data::split::epoch_order;
-use envision4d_data::{ClipDataset, Split};
+use envision4d_data::{ClipDataset, HostClip, Prefetch, Split};
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 use std::time::Instant;
 
 pub const CONFIG_FILE: &str = "config.toml";
@@ -67,9 +68,13 @@ pub fn resolve_resume(dir: &Path) -> Result<PathBuf> {
         .pop()
         .map(|(_, p)| p)
         .ok_or_else(|| {
-            TrainError::Batch(format!("--resume {}: no checkpoint in it", dir.display()))
+            TrainError::checkpoint(dir, "--resume: no checkpoint in it")
         })
 }
+
+/// Training windows decoded ahead of the step that needs them (a batch and a half: the
+/// next batch is ready when a step ends, and a slow clip does not stall the one after).
+const PREFETCH_BATCHES: f64 = 1.5;
 
 /// Which training clip the `k`-th sample of the run is: a seeded shuffle per epoch, so the
 /// data order is a function of (seed, step) and a resumed run sees the same clips.
@@ -92,8 +97,63 @@ fn sample_index(
 fn host_clip(ds: &ClipDataset, index: usize) -> Result<HostClip> {
     let clip = ds
         .load(index)
-        .map_err(|e| TrainError::Batch(format!("clip {index}: {e}")))?;
-    HostClip::from_clip(&clip)
+        .map_err(|e| TrainError::data(format!("clip {index}"), e))?;
+    HostClip::from_clip(&clip).map_err(|e| TrainError::data(format!("clip {index}"), e))
+}
+
+/// The training windows of samples `first..end` (sample `k` is the `k % B`-th clip of step
+/// `k / B`), decoded, converted and augmented on a worker thread, in order. The order and
+/// the augmentation are functions of (seed, sample), exactly as without the worker.
+fn training_windows(
+    dataset: Arc<ClipDataset>,
+    cfg: &TrainConfig,
+    train: Vec<usize>,
+    samples: std::ops::Range<u64>,
+) -> Prefetch<Result<HostClip>> {
+    let (seed, augment) = (cfg.seed, cfg.data.augment.clone());
+    let depth = (cfg.optim.batch_size as f64 * PREFETCH_BATCHES).ceil() as usize;
+    let mut order_cache = None;
+    Prefetch::new(samples, depth, move |k| {
+        let index = sample_index(&train, seed, k, &mut order_cache);
+        Some(host_clip(&dataset, index).map(|mut clip| {
+            augment::apply(&mut clip, augment::playback(&augment, seed, k));
+            clip
+        }))
+    })
+}
+
+/// The next `batch_size` windows from the prefetcher.
+fn next_clips(windows: &mut Prefetch<Result<HostClip>>, batch_size: usize) -> Result<Vec<HostClip>> {
+    (0..batch_size)
+        .map(|_| {
+            windows
+                .next()
+                .unwrap_or_else(|| Err(TrainError::Internal("the data worker stopped".into())))
+        })
+        .collect()
+}
+
+/// One step of `trainer` on `clips` (split across `devices` when there are several).
+fn step_on(
+    trainer: &mut Trainer,
+    clips: &[HostClip],
+    labels: (usize, bool),
+    device: &Device,
+    devices: &[Device],
+) -> Result<StepReport> {
+    let (depth_frames, with_gt) = labels;
+    if devices.len() > 1 {
+        let per = clips.len() / devices.len();
+        let shards = clips
+            .chunks(per)
+            .zip(devices)
+            .map(|(c, d)| Batch::from_clips(c, depth_frames, with_gt, d))
+            .collect::<Result<Vec<_>>>()?;
+        trainer.train_step_parallel(&shards, devices)
+    } else {
+        let batch = Batch::from_clips(clips, depth_frames, with_gt, device)?;
+        trainer.train_step(&batch)
+    }
 }
 
 /// Runs (or resumes) the training `cfg` describes.
@@ -110,7 +170,7 @@ pub fn run(
         Some(d) => Some(resolve_resume(d)?),
         None => {
             if let Some((step, _)) = checkpoint::list(&ckpt_root)?.pop() {
-                return Err(TrainError::Batch(format!(
+                return Err(TrainError::Unusable(format!(
                     "{} already holds a run (checkpoint at step {step}): pass --resume {} or set another run.out_dir",
                     out.display(),
                     out.display()
@@ -119,67 +179,44 @@ pub fn run(
             None
         }
     };
-    std::fs::create_dir_all(&out).map_err(crate::error::io(&out))?;
+    std::fs::create_dir_all(&out).map_err(crate::error::written(&out))?;
     envision4d_data::atomic::write_bytes(&config_path, cfg.to_toml().as_bytes())
-        .map_err(|e| TrainError::Batch(e.to_string()))?;
+        .map_err(|e| TrainError::write(&config_path, e))?;
 
-    let dataset = open_dataset(&cfg.data, &cfg.model, &cfg.data.root)?;
+    let dataset = Arc::new(open_dataset(&cfg.data, &cfg.model, &cfg.data.root)?);
     let train = split(&dataset, Split::Train, cfg.seed);
     if train.is_empty() {
-        return Err(TrainError::Batch(format!(
+        return Err(TrainError::Unusable(format!(
             "data.root {}: no clip in the training split ({} clips in all)",
             cfg.data.root.display(),
             dataset.len()
         )));
     }
-    let val_idx: Vec<usize> = split(&dataset, Split::Val, cfg.seed)
+    let val_clips = split(&dataset, Split::Val, cfg.seed)
         .into_iter()
         .take(cfg.run.val_clips)
-        .collect();
-    let val_clips = val_idx
-        .iter()
-        .map(|&i| host_clip(&dataset, i))
+        .map(|i| host_clip(&dataset, i))
         .collect::<Result<Vec<_>>>()?;
     if cfg.run.val_every > 0 && val_clips.is_empty() {
         obs.note("no validation clip in the split: validation skipped");
     }
 
-    let parallel = opts.devices.len() > 1;
-    if parallel && cfg.optim.batch_size % opts.devices.len() != 0 {
+    let devices = &opts.devices;
+    if devices.len() > 1 && cfg.optim.batch_size % devices.len() != 0 {
         return Err(TrainError::invalid(
             "optim.batch_size",
             cfg.optim.batch_size,
             format!(
                 "must be a multiple of the {} devices of --devices",
-                opts.devices.len()
+                devices.len()
             ),
         ));
     }
-    // A resumed run takes its weights from the checkpoint: the init weights are not read
-    // (they may have moved), but the teacher still needs its own.
-    let mut build = cfg.clone();
-    if resume_dir.is_some() {
-        build.teacher_checkpoint = cfg
-            .teacher_checkpoint
-            .clone()
-            .or(cfg.init_checkpoint.clone());
-        build.init_checkpoint = None;
+    let mut trainer = start_trainer(&cfg, device, resume_dir.as_deref(), &ckpt_root, obs)?;
+    if devices.len() > 1 {
+        trainer.prepare_devices(devices)?;
     }
-    let mut trainer = Trainer::new(build, device)?;
-    trainer.config = cfg.clone();
     let identity = checkpoint::resume_identity(&cfg);
-    if let Some(dir) = &resume_dir {
-        checkpoint::restore(&mut trainer, dir)?;
-        checkpoint::set_aside_newer(&ckpt_root, trainer.step)?;
-        obs.note(&format!(
-            "resumed from {} at step {}",
-            dir.display(),
-            trainer.step
-        ));
-    }
-    if opts.devices.len() > 1 {
-        trainer.prepare_devices(&opts.devices)?;
-    }
     let mut log = JsonlLog::open(&out.join(LOG_FILE), trainer.step)?;
     let (n, tc) = (cfg.model.num_frames(), cfg.model.context_frames);
     let depth_frames = match cfg.stage {
@@ -189,38 +226,22 @@ pub fn run(
     let with_gt = cfg.stage == Stage::Backbone || cfg.teacher == Teacher::GroundTruth;
     let end = opts.stop_at.unwrap_or(u64::MAX).min(cfg.optim.iterations);
     obs.start(trainer.step, cfg.optim.iterations);
-    let mut order_cache = None;
     let mut last_ckpt = resume_dir.clone();
     let mut last_val = None;
     let t_start = Instant::now();
     let first = trainer.step;
+    let b = cfg.optim.batch_size as u64;
+    let mut windows = training_windows(
+        dataset.clone(),
+        &cfg,
+        train,
+        first.saturating_mul(b)..end.max(first).saturating_mul(b),
+    );
     while trainer.step < end {
         let step = trainer.step;
-        let b = cfg.optim.batch_size as u64;
-        let clips = (0..b)
-            .map(|i| {
-                let k = step * b + i;
-                let mut clip = host_clip(
-                    &dataset,
-                    sample_index(&train, cfg.seed, k, &mut order_cache),
-                )?;
-                augment::apply(&mut clip, augment::playback(&cfg.data.augment, cfg.seed, k));
-                Ok(clip)
-            })
-            .collect::<Result<Vec<_>>>()?;
+        let clips = next_clips(&mut windows, cfg.optim.batch_size)?;
         let t0 = Instant::now();
-        let report = if parallel {
-            let per = clips.len() / opts.devices.len();
-            let shards = clips
-                .chunks(per)
-                .zip(&opts.devices)
-                .map(|(c, d)| Batch::from_clips(c, depth_frames, with_gt, d))
-                .collect::<Result<Vec<_>>>()?;
-            trainer.train_step_parallel(&shards, &opts.devices)?
-        } else {
-            let batch = Batch::from_clips(&clips, depth_frames, with_gt, device)?;
-            trainer.train_step(&batch)?
-        };
+        let report = step_on(&mut trainer, &clips, (depth_frames, with_gt), device, devices)?;
         let rate = (trainer.step - first) as f64 / t_start.elapsed().as_secs_f64().max(1e-9);
         obs.step(&report, rate);
         if !report.outcome.applied() || (step + 1) % cfg.run.log_every == 0 {
@@ -249,14 +270,7 @@ pub fn run(
         // Validation after the checkpoint, and never fatal: a bad validation clip must not
         // cost the steps since the last checkpoint.
         if cfg.run.val_every > 0 && done % cfg.run.val_every == 0 && !val_clips.is_empty() {
-            match validate(
-                &trainer.model,
-                cfg.stage,
-                &val_clips,
-                tc,
-                done,
-                &trainer.raster,
-            ) {
+            match validate(&trainer.model, cfg.stage, &val_clips, tc, done, &trainer.raster) {
                 Ok(v) => {
                     log.validation(&v)?;
                     obs.validation(&v);
@@ -272,7 +286,7 @@ pub fn run(
     };
     let model = out.join(MODEL_FILE);
     envision4d_model::checkpoint::save_checkpoint(&trainer.model, &cfg.model, &model)
-        .map_err(|e| TrainError::Model(e.to_string()))?;
+        .map_err(|e| TrainError::write(&model, e))?;
     Ok(RunSummary {
         steps: trainer.step,
         skipped: trainer.skipped,
@@ -280,4 +294,36 @@ pub fn run(
         model,
         last_validation: last_val,
     })
+}
+
+/// The trainer of a new run, or of a resumed one restored from `resume`. A resumed run
+/// takes its weights from the checkpoint: the init weights are not read (they may have
+/// moved), but the teacher still needs its own.
+fn start_trainer(
+    cfg: &TrainConfig,
+    device: &Device,
+    resume: Option<&Path>,
+    ckpt_root: &Path,
+    obs: &mut dyn Observer,
+) -> Result<Trainer> {
+    let mut build = cfg.clone();
+    if resume.is_some() {
+        build.teacher_checkpoint = cfg
+            .teacher_checkpoint
+            .clone()
+            .or(cfg.init_checkpoint.clone());
+        build.init_checkpoint = None;
+    }
+    let mut trainer = Trainer::new(build, device)?;
+    trainer.config = cfg.clone();
+    if let Some(dir) = resume {
+        checkpoint::restore(&mut trainer, dir)?;
+        checkpoint::set_aside_newer(ckpt_root, trainer.step)?;
+        obs.note(&format!(
+            "resumed from {} at step {}",
+            dir.display(),
+            trainer.step
+        ));
+    }
+    Ok(trainer)
 }

@@ -2,6 +2,7 @@
 //! geometric warm-up, α annealing, extrapolation frame weights, and the cosine learning rate.
 
 use crate::config::{AnnealOrigin, LrSchedule, Switch, TrainConfig};
+use envision4d_model::adapter::Exclusion;
 
 /// Which rendering regime a step is in.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -12,6 +13,20 @@ pub enum Phase {
     Progressive,
     /// The backbone stage: supervised on ground truth, no rendering.
     Supervised,
+}
+
+/// What one Envision4D-stage step renders and how it weighs it (paper §3.4).
+#[derive(Debug, Clone, PartialEq)]
+pub struct PhasePlan {
+    pub phase: Phase,
+    /// Frames rendered and compared with the truth.
+    pub targets: Vec<usize>,
+    /// Whether a target's own Gaussians take part.
+    pub exclusion: Exclusion,
+    /// `w̄_t` of each target, in the order of `targets`.
+    pub weights: Vec<f64>,
+    /// Whether the Gaussians move with the predicted motion.
+    pub motion: bool,
 }
 
 /// Everything the schedule needs, copied out of a [`TrainConfig`].
@@ -53,6 +68,32 @@ impl Schedule {
             Phase::Warmup
         } else {
             Phase::Progressive
+        }
+    }
+
+    /// The plan of step `step` for `context` of `frames` frames.
+    ///
+    /// Geometric warm-up is static ("static geometry and pose optimization"): every context
+    /// frame is rendered from all context Gaussians, its own included, none moved. Letting
+    /// the untrained motion move the other frames' Gaussians here taught the motion head to
+    /// push them out of view, and the first self-exclusive renders came out empty. After
+    /// it, all `N` frames are rendered self-exclusively with motion, progressively weighted.
+    pub fn plan(&self, step: u64, context: usize, frames: usize) -> PhasePlan {
+        match self.phase(step) {
+            Phase::Warmup => PhasePlan {
+                phase: Phase::Warmup,
+                targets: (0..context).collect(),
+                exclusion: Exclusion::IncludeOwn,
+                weights: vec![1.0; context],
+                motion: false,
+            },
+            phase @ (Phase::Progressive | Phase::Supervised) => PhasePlan {
+                phase,
+                targets: (0..frames).collect(),
+                exclusion: Exclusion::SelfExclusive,
+                weights: self.frame_weights(step, context, frames),
+                motion: true,
+            },
         }
     }
 

@@ -1,24 +1,25 @@
-//! The stage-`envision4d` training step: forward on the context frames, adapt, render every
-//! target frame from the other frames' Gaussians through the PREDICTED camera (so L_rgb
-//! reaches the poses), weight L_rgb progressively, add the distillation terms, and take an
-//! Adam step on the trainable parameters only.
+//! The training step (paper §3.4). Stage `envision4d`: forward on the context frames, the
+//! schedule's [`PhasePlan`] says which frames to render and how to weigh them, each target
+//! is rendered from the scene path (other frames' Gaussians moved to its time) through the
+//! PREDICTED camera so `L_rgb` reaches the poses, then the distillation terms are added.
+//! Either stage ends in an Adam step on the trainable parameters only.
 
-use crate::backbone::{backbone_loss, masked_l1, FrozenTeacher};
+use crate::backbone::backbone_loss;
 use crate::batch::Batch;
-use crate::clip::clip_global_norm;
 use crate::config::{ClipMode, Stage, Teacher, TrainConfig};
+use crate::distill::{labels, DistillLoss, FrozenTeacher};
 use crate::error::{Result, TrainError};
 use crate::freeze::{detach_frozen, grads_finite, params_finite, ParamSplit};
-use crate::infer::{gaussians_for, predict_scene, Scene};
+use crate::grad_clip::clip_global_norm;
 pub use crate::init::{build_model, identity_pose_init, INITIAL_FOV_RAD, POSE_OUTPUT_INIT_SCALE};
-use crate::schedule::{Phase, Schedule};
+use crate::schedule::{Phase, PhasePlan, Schedule};
 use burn::grad_clipping::GradientClippingConfig;
 use burn::optim::{AdamConfig, GradientsParams, ModuleOptimizer};
 use burn::tensor::{Device, Tensor};
-use envision4d_losses::{camera_distill_weighted, LpipsNet, LpipsStatus, RgbLoss};
-use envision4d_model::adapter::{AdaptedGaussians, Exclusion};
+use envision4d_losses::{psnr_from_mse, LpipsNet, LpipsStatus, RgbLoss};
+use envision4d_model::scene::predict_scene;
 use envision4d_model::Envision4d;
-use envision4d_splat::{render, Cameras, RasterConfig};
+use envision4d_splat::RasterConfig;
 
 /// Loss terms of one step (scalar tensors `[1]`, still attached to the graph).
 #[derive(Debug, Clone)]
@@ -82,39 +83,6 @@ impl StepOutcome {
     }
 }
 
-/// Renders target frames `targets` of batch element `b` (each from `gaussians_at(.., j,
-/// exclusion)`) with the predicted cameras; returns `[F, 3, H, W]`.
-pub fn render_targets(
-    adapted: &AdaptedGaussians,
-    extrinsics: &Tensor<4>,
-    intrinsics: &Tensor<4>,
-    b: usize,
-    targets: &[usize],
-    exclusion: Exclusion,
-    size: [usize; 2],
-    raster: &RasterConfig,
-) -> Result<Tensor<4>> {
-    let mut frames = Vec::with_capacity(targets.len());
-    for &j in targets {
-        let g = gaussians_for(adapted, b, j, exclusion);
-        let cams = Cameras {
-            viewmats: extrinsics
-                .clone()
-                .slice([b..b + 1, j..j + 1, 0..4, 0..4])
-                .reshape([1, 4, 4]),
-            ks: intrinsics
-                .clone()
-                .slice([b..b + 1, j..j + 1, 0..3, 0..3])
-                .reshape([1, 3, 3]),
-            width: size[1] as u32,
-            height: size[0] as u32,
-        };
-        let out = render(&g, &cams, raster)?;
-        frames.push(out.rgb.permute([0, 3, 1, 2]));
-    }
-    Ok(Tensor::cat(frames, 0))
-}
-
 pub(crate) fn scalar(t: &Tensor<1>) -> f64 {
     t.clone()
         .into_data()
@@ -126,15 +94,16 @@ pub(crate) fn scalar(t: &Tensor<1>) -> f64 {
 fn make_rgb_loss(config: &TrainConfig, device: &Device) -> Result<RgbLoss> {
     let path = config.loss.lpips_weights.as_deref();
     let lpips = LpipsStatus::from_path(path, LpipsNet::Vgg, device).map_err(|e| {
-        TrainError::Input(format!(
-            "loss.lpips_weights {}: {e}",
-            path.map_or("(none)".into(), |p| p.display().to_string())
-        ))
+        TrainError::invalid(
+            "loss.lpips_weights",
+            path.map_or("(none)".into(), |p| p.display().to_string()),
+            e.to_string(),
+        )
     })?;
     Ok(RgbLoss::new(config.loss.lambda_lpips, &lpips)?.with_ssim(config.loss.lambda_ssim)?)
 }
 
-/// Adam (no weight decay: the paper states none, model.md §3) with the configured ε and,
+/// Adam (no weight decay: the paper states none, `docs/MODEL.md`) with the configured ε and,
 /// for the per-tensor modes, Burn's clipping; global-norm clipping is applied by the step.
 fn make_optimizer(config: &TrainConfig) -> ModuleOptimizer {
     let o = &config.optim;
@@ -242,7 +211,7 @@ impl Trainer {
         let (tc, n) = (m.context_frames, m.num_frames());
         let [bsz, frames, _, h, w] = batch.images.dims();
         if frames != n {
-            return Err(TrainError::Batch(format!(
+            return Err(TrainError::Unusable(format!(
                 "batch has {frames} frames, the model expects T_c + T_f = {n}"
             )));
         }
@@ -250,48 +219,60 @@ impl Trainer {
             .images
             .clone()
             .slice([0..bsz, 0..tc, 0..3, 0..h, 0..w]);
-        let scene = predict_scene(model, context, step)?;
-        let phase = self.schedule.phase(step);
-        // Geometric warm-up is static (paper §3.4: "static geometry and pose optimization"):
-        // every context frame is rendered from all context Gaussians, none moved. Letting the
-        // untrained motion move the other frames' Gaussians here taught the motion head to
-        // push them out of view, and the first self-exclusive renders came out empty.
-        let Scene { pred, adapted } = match phase {
-            Phase::Warmup => scene.without_motion(),
-            Phase::Progressive | Phase::Supervised => scene,
+        let scene = predict_scene(model, context)?;
+        let plan = self.schedule.plan(step, tc, n);
+        let scene = if plan.motion {
+            scene
+        } else {
+            scene.without_motion()
         };
-        let (targets, exclusion): (Vec<usize>, _) = match phase {
-            Phase::Warmup => ((0..tc).collect(), Exclusion::IncludeOwn),
-            Phase::Progressive | Phase::Supervised => ((0..n).collect(), Exclusion::SelfExclusive),
-        };
-        let weights = match phase {
-            Phase::Warmup => vec![1.0; n],
-            Phase::Progressive | Phase::Supervised => self.schedule.frame_weights(step, tc, n),
-        };
+        let (rgb, mse) = self.rendering_loss(&scene, batch, &plan)?;
+        let mut total = rgb.clone();
+        let (mut camera, mut depth) = (None, None);
+        if let Some(t) = labels(self.config.teacher, self.teacher.as_ref(), batch, tc)? {
+            let d = scene
+                .pred
+                .depth
+                .clone()
+                .ok_or_else(|| TrainError::Internal("depth head did not run".into()))?;
+            let terms = DistillLoss::new(scene.pred.backbone.pose_enc(), d, &t, &self.config.loss)?;
+            total = terms.add_to(total, &self.config.loss);
+            camera = Some(terms.camera);
+            depth = Some(terms.depth);
+        }
+        Ok(LossTerms {
+            total,
+            rgb,
+            rgb_mse: Some(mse),
+            camera,
+            depth,
+            phase: plan.phase,
+        })
+    }
+
+    /// `L_rgb` of the plan's targets, `Σ_t w̄_t·L_rgb,t / N_rendered` averaged over the batch,
+    /// and the unweighted mean MSE of the renders (detached, for the log's PSNR).
+    fn rendering_loss(
+        &self,
+        scene: &envision4d_model::Scene,
+        batch: &Batch,
+        plan: &PhasePlan,
+    ) -> Result<(Tensor<1>, Tensor<1>)> {
+        let [bsz, n, _, h, w] = batch.images.dims();
         let device = batch.images.device();
-        let wt: Vec<f32> = targets.iter().map(|&j| weights[j] as f32).collect();
+        let wt: Vec<f32> = plan.weights.iter().map(|&w| w as f32).collect();
         let wt = Tensor::<1>::from_floats(wt.as_slice(), &device);
-        let bb = &pred.backbone;
         let mut rgb_sum = Tensor::<1>::zeros([1], &device);
         let mut mse_sum = Tensor::<1>::zeros([1], &device);
         for b in 0..bsz {
-            let rendered = render_targets(
-                &adapted,
-                &bb.extrinsics,
-                &bb.intrinsics,
-                b,
-                &targets,
-                exclusion,
-                [h, w],
-                &self.raster,
-            )?;
+            let rendered = scene.render(b, &plan.targets, plan.exclusion, [h, w], &self.raster)?;
             let gt = batch
                 .images
                 .clone()
                 .slice([b..b + 1, 0..n, 0..3, 0..h, 0..w])
                 .reshape([n, 3, h, w]);
             let gt = Tensor::cat(
-                targets
+                plan.targets
                     .iter()
                     .map(|&j| gt.clone().slice([j..j + 1, 0..3, 0..h, 0..w]))
                     .collect(),
@@ -301,53 +282,8 @@ impl Trainer {
             mse_sum = mse_sum + terms.mse.sum().detach();
             rgb_sum = rgb_sum + (terms.total * wt.clone()).sum();
         }
-        // Σ_t w̄_t·L_rgb,t / N_rendered, averaged over the batch.
-        let rgb = rgb_sum / (bsz * targets.len()) as f64;
-        let mut total = rgb.clone();
-        let (mut camera, mut depth) = (None, None);
-        let labels = match self.config.teacher {
-            Teacher::None => None,
-            Teacher::GroundTruth => Some(batch.teacher.clone().ok_or_else(|| {
-                TrainError::Batch(
-                    "teacher = \"ground_truth\" but the batch carries no targets".into(),
-                )
-            })?),
-            Teacher::Backbone => {
-                let teacher = self.teacher.as_ref().ok_or_else(|| {
-                    TrainError::Model("teacher = \"backbone\" but no teacher is loaded".into())
-                })?;
-                Some(
-                    teacher
-                        .targets(batch.images.clone(), tc)?
-                        .to_device(&device),
-                )
-            }
-        };
-        if let Some(t) = labels {
-            let cam = camera_distill_weighted(
-                bb.pose_enc(),
-                t.pose_enc.detach(),
-                self.config.loss.rotation_weight,
-            )?;
-            let d = pred
-                .depth
-                .clone()
-                .ok_or_else(|| TrainError::Model("depth head did not run".into()))?;
-            let dl = masked_l1(d, t.depth.detach());
-            total = total
-                + cam.clone() * self.config.loss.lambda_cam
-                + dl.clone() * self.config.loss.lambda_depth;
-            camera = Some(cam);
-            depth = Some(dl);
-        }
-        Ok(LossTerms {
-            total,
-            rgb,
-            rgb_mse: Some(mse_sum / (bsz * targets.len()) as f64),
-            camera,
-            depth,
-            phase,
-        })
+        let rendered = (bsz * plan.targets.len()) as f64;
+        Ok((rgb_sum / rendered, mse_sum / rendered))
     }
 
     /// One optimisation step on `batch`; a non-finite loss skips the update.
@@ -376,7 +312,7 @@ impl Trainer {
             rgb: scalar(&terms.rgb),
             camera: terms.camera.as_ref().map_or(0.0, scalar),
             depth: terms.depth.as_ref().map_or(0.0, scalar),
-            psnr: terms.rgb_mse.as_ref().map(|m| -10.0 * scalar(m).log10()),
+            psnr: terms.rgb_mse.as_ref().map(|m| psnr_from_mse(scalar(m))),
             lr,
             phase: terms.phase,
             outcome,
@@ -449,7 +385,7 @@ impl Trainer {
             .iter()
             .find(|(d, _)| d == device)
             .map(|(_, l)| l)
-            .ok_or_else(|| TrainError::Model(format!("no rendering loss on {device:?}")))
+            .ok_or_else(|| TrainError::Internal(format!("no rendering loss on {device:?}")))
     }
 
     /// Makes sure a rendering loss (with its LPIPS weights) exists on each of `devices`.

@@ -1,15 +1,16 @@
 //! Periodic validation on held-out clips during training: the quality of what the stage
-//! trains, on clips never stepped on, with the model in inference mode (no graph).
+//! trains, on clips never stepped on, with the model in inference mode (no graph). Views
+//! are scored with the evaluation crate's PSNR, so the log's numbers are `eval`'s.
 
-use crate::backbone::masked_l1;
-use crate::batch::{Batch, HostClip};
+use crate::batch::Batch;
 use crate::config::Stage;
 use crate::error::Result;
-use crate::infer::predict_scene;
-use crate::step::render_targets;
 use burn::module::Module;
-use envision4d_losses::{camera_distill, mse_per_frame};
+use envision4d_data::HostClip;
+use envision4d_eval::score::psnr_per_frame;
+use envision4d_losses::{camera_distill, depth_distill};
 use envision4d_model::adapter::Exclusion;
+use envision4d_model::scene::predict_scene;
 use envision4d_model::model::VggtDepth;
 use envision4d_model::Envision4d;
 use envision4d_splat::RasterConfig;
@@ -37,13 +38,6 @@ fn mean(v: &[f64]) -> Option<f64> {
 
 fn value(t: burn::tensor::Tensor<1>) -> f64 {
     t.into_data().iter::<f64>().next().unwrap_or(f64::NAN)
-}
-
-fn psnr_of(mse: burn::tensor::Tensor<1>) -> Vec<f64> {
-    mse.into_data()
-        .iter::<f64>()
-        .map(|m| -10.0 * m.max(1e-12).log10())
-        .collect()
 }
 
 /// Validates `model` on `clips` for `stage`.
@@ -77,10 +71,10 @@ pub fn validate(
         match stage {
             Stage::Backbone => {
                 let out = model.vggt(batch.images.clone(), VggtDepth::Run);
-                if let Some(t) = &batch.teacher {
+                if let Some(t) = &batch.labels {
                     cam.push(value(camera_distill(out.pose_enc(), t.pose_enc.clone())?));
                     if let Some((d, _)) = out.depth {
-                        dep.push(value(masked_l1(d, t.depth.clone())));
+                        dep.push(value(depth_distill(d, t.depth.clone())?));
                     }
                 }
             }
@@ -90,27 +84,18 @@ pub fn validate(
                         .images
                         .clone()
                         .slice([0..1, 0..context, 0..3, 0..h, 0..w]);
-                let scene = predict_scene(&model, context_images, step)?;
+                let scene = predict_scene(&model, context_images)?;
                 let bb = &scene.pred.backbone;
                 let all: Vec<usize> = (0..n).collect();
-                let rendered = render_targets(
-                    &scene.adapted,
-                    &bb.extrinsics,
-                    &bb.intrinsics,
-                    0,
-                    &all,
-                    Exclusion::SelfExclusive,
-                    [h, w],
-                    raster,
-                )?;
+                let rendered = scene.render(0, &all, Exclusion::SelfExclusive, [h, w], raster)?;
                 let truth = batch.images.clone().reshape([n, 3, h, w]);
-                let p = psnr_of(mse_per_frame(rendered, truth)?);
+                let p = psnr_per_frame(rendered, truth)?;
                 ctx.extend_from_slice(&p[..context]);
                 fut.extend_from_slice(&p[context..]);
-                if let Some(t) = &batch.teacher {
+                if let Some(t) = &batch.labels {
                     cam.push(value(camera_distill(bb.pose_enc(), t.pose_enc.clone())?));
                     if let Some(d) = scene.pred.depth.clone() {
-                        dep.push(value(masked_l1(d, t.depth.clone())));
+                        dep.push(value(depth_distill(d, t.depth.clone())?));
                     }
                 }
             }

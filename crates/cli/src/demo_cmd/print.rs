@@ -6,8 +6,8 @@ use crate::backend_choice::BackendChoice;
 use crate::eval_cmd::shared::backend_name;
 use envision4d_data::synth::SynthConfig;
 use envision4d_model::ModelConfig;
-use envision4d_train::eval::markdown::opt;
-use envision4d_train::eval::{ClipMetrics, Method, MethodScore, Report};
+use envision4d_eval::markdown::opt;
+use envision4d_eval::{ClipMetrics, Method, MethodScore, Report};
 use std::fmt::Write;
 use std::path::{Path, PathBuf};
 

@@ -12,9 +12,9 @@ use envision4d_data::{atomic, ClipDataset};
 use envision4d_losses::{LpipsNet, LpipsStatus};
 use envision4d_model::checkpoint::{load_checkpoint, CheckpointKind};
 use envision4d_model::{Envision4d, ModelConfig};
-use envision4d_train::eval::report::{CropInfo, LpipsInfo, SCHEMA_VERSION};
-use envision4d_train::eval::{
-    evaluate_dataset, future_frames, markdown, mean_metrics, protocol::alignment_name, EvalOptions,
+use envision4d_eval::report::{CropInfo, LpipsInfo, SCHEMA_VERSION};
+use envision4d_eval::{
+    evaluate_dataset, markdown, mean_metrics, protocol::alignment_name, EvalOptions,
     EvalRun, Report, SweepPoint,
 };
 use std::path::{Path, PathBuf};
@@ -103,7 +103,7 @@ pub fn build_report(
         split: from.split,
         backend: backend_name(from.backend),
         context_frames: cfg.context_frames,
-        future_frames: future_frames(model),
+        future_frames: model.future_frames(),
         image_size: cfg.image_size,
         input_size: cfg.image_size,
         crop: CropInfo {

@@ -4,7 +4,7 @@
 
 use anyhow::{Context, Result};
 use burn::tensor::Tensor;
-use envision4d_train::infer::Scene;
+use envision4d_model::Scene;
 use std::collections::HashMap;
 use std::path::Path;
 

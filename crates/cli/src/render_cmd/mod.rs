@@ -22,10 +22,9 @@ use crate::InputError;
 use anyhow::{anyhow, Result};
 use burn::tensor::{Device, Tensor};
 use clap::Args;
-use envision4d_model::model::{Heads, Predictions};
-use envision4d_model::pose::pose_encoding_to_extri_intri;
+use envision4d_model::model::Predictions;
 use envision4d_model::Envision4d;
-use envision4d_train::infer::{clamp_fov, predict_scene, Scene};
+use envision4d_model::scene::{predict_cameras, predict_scene, Scene};
 use indicatif::{ProgressBar, ProgressStyle};
 use outputs::Output;
 pub use outputs::{OutDir, OutputArgs, Plan};
@@ -33,9 +32,6 @@ use poses::HostCameras;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
-/// Step handed to the adapter's opacity schedule. The shipped schedule is the identity at every
-/// step, and inference has no training step to report.
-const INFERENCE_STEP: u64 = 0;
 const PROGRESS_TEMPLATE: &str = "{bar:40} {pos}/{len} {msg}  {elapsed_precise}";
 
 #[derive(Args, Debug)]
@@ -183,9 +179,9 @@ pub fn predict_and_write(
     });
     let t1 = Instant::now();
     let pass = if needs_scene {
-        Pass::Scene(predict_scene(model, images, INFERENCE_STEP)?)
+        Pass::Scene(predict_scene(model, images)?)
     } else {
-        Pass::PosesOnly(poses_only(model, images))
+        Pass::PosesOnly(predict_cameras(model, images))
     };
     let forward = t1.elapsed();
     bar.inc(1);
@@ -234,15 +230,4 @@ pub fn predict_and_write(
         notes,
         manifest,
     })
-}
-
-/// Backbone and camera head only, with the cameras rebuilt from the clamped FoV as
-/// [`predict_scene`] does, so poses.json is the same whichever outputs were asked for.
-fn poses_only(model: &Envision4d, images: Tensor<5>) -> Predictions {
-    let [_, _, _, h, w] = images.dims();
-    let mut pred = model.forward(images, Heads::NONE);
-    let (extr, intr) = pose_encoding_to_extri_intri(clamp_fov(pred.backbone.pose_enc()), h, w);
-    pred.backbone.extrinsics = extr;
-    pred.backbone.intrinsics = intr;
-    pred
 }

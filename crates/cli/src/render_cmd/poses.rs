@@ -8,8 +8,8 @@ use envision4d_model::model::Predictions;
 use envision4d_splat::camera_json::CameraJson;
 use serde::Serialize;
 
-/// Length of the pose encoding (translation 3, quaternion 4, FoV 2).
-const POSE_ENC_DIM: usize = 9;
+// The 9-d pose encoding's width, from its one definition in the model crate.
+use envision4d_model::pose::POSE_ENCODING_DIM as POSE_ENC_DIM;
 /// Sub-folder of the camera JSONs.
 pub const CAMERAS_DIR: &str = "cameras";
 const POSES_FILE: &str = "poses.json";

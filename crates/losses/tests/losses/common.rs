@@ -54,19 +54,15 @@ pub fn fixture_vgg_weights() -> LpipsWeights {
     LpipsWeights::from_safetensors_with(&fixture(), LpipsNet::Vgg, &keys).expect("fixture vgg")
 }
 
-/// SplitMix64: a tiny deterministic RNG for test data.
-pub struct Rng(u64);
+/// Test data from the test kit's SplitMix64 stream.
+pub struct Rng(envision4d_splat::testkit::SplitMix64);
 
 impl Rng {
     pub fn new(seed: u64) -> Self {
-        Self(seed)
+        Self(envision4d_splat::testkit::SplitMix64::new(seed))
     }
     pub fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
+        self.0.next_u64()
     }
     /// Uniform in [lo, hi).
     pub fn range(&mut self, lo: f64, hi: f64) -> f64 {

@@ -8,8 +8,9 @@
 use super::math::*;
 use cubecl::prelude::*;
 
-/// Squared quaternion norms at or below this are culled (`config::QUAT_NORM2_MIN`).
-const QUAT_NORM2_MIN: f32 = 1e-12;
+/// Squared quaternion norms at or below this are culled, from
+/// [`crate::config::QUAT_NORM2_MIN`].
+const QUAT_NORM2_MIN: f32 = crate::config::QUAT_NORM2_MIN as f32;
 
 /// Everything the projection computes that its backward pass needs again.
 #[derive(CubeType, Clone, Copy)]

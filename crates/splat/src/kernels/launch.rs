@@ -27,15 +27,6 @@ use burn_cubecl::CubeBackend;
 use cubecl::features::AtomicUsage;
 use cubecl::ir::{ElemType, FloatKind, Type};
 use cubecl::{calculate_cube_count_elemwise, CubeCount, CubeDim};
-use std::sync::atomic::{AtomicBool, Ordering};
-
-/// Forces the compare-and-swap gradient accumulation even where float atomics exist (tests).
-static FORCE_CAS: AtomicBool = AtomicBool::new(false);
-
-/// Makes later backward passes use (or stop using) the CAS fallback for float atomics.
-pub fn force_cas_atomics(on: bool) {
-    FORCE_CAS.store(on, Ordering::SeqCst);
-}
 
 fn read_f32(t: CubeTensor) -> Vec<f32> {
     let data = read_sync(CubeBackend::float_into_data(t))
@@ -336,7 +327,8 @@ pub fn backward(
     let [g_means, g_quats, g_scales, g_opac, g_colors] =
         [3, 4, 3, 1, 3].map(|lanes| zeros(&inp.means, n * lanes));
     let mut cam_grads = Vec::with_capacity(inp.cams.len());
-    let native = has_float_atomic_add(&inp.means) && !FORCE_CAS.load(Ordering::SeqCst);
+    let native = has_float_atomic_add(&inp.means)
+        && cfg.grad_accumulation != crate::config::GradAccumulation::CompareAndSwap;
     for v in 0..inp.cams.len() {
         let mut cg = CameraGrad::<f32>::zero();
         if n > 0 {

@@ -16,12 +16,13 @@ use cubecl::prelude::*;
 pub const RECORD_LANES: usize = 10;
 /// Lanes of one meta row: tile rect (4) and radii (2).
 pub const META_LANES: usize = 6;
-/// Largest extent in standard deviations (`config::EXTENT_CAP`).
-const EXTENT_CAP: f32 = 3.33;
-/// Radius clamp before the integer conversion (`config::RADIUS_MAX`).
-const RADIUS_MAX: f32 = 1.0e7;
-/// Tile side in pixels (`config::TILE_SIZE`).
-const TILE: f32 = 16.0;
+/// Largest extent in standard deviations, from [`crate::config::EXTENT_CAP`] (an f32
+/// literal in the kernel; the cast is exact to the nearest f32).
+const EXTENT_CAP: f32 = crate::config::EXTENT_CAP as f32;
+/// Radius clamp before the integer conversion, from [`crate::config::RADIUS_MAX`].
+const RADIUS_MAX: f32 = crate::config::RADIUS_MAX as f32;
+/// Tile side in pixels, from [`crate::config::TILE_SIZE`].
+const TILE: f32 = crate::config::TILE_SIZE as f32;
 
 #[cube(launch)]
 #[allow(clippy::too_many_arguments)]

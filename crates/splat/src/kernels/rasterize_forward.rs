@@ -8,10 +8,10 @@
 use super::project_forward::RECORD_LANES;
 use cubecl::prelude::*;
 
-/// Tile side in pixels (`config::TILE_SIZE`); the cube is TILE x TILE threads.
-pub const TILE: u32 = 16;
-/// Channels written per pixel: R, G, B, accumulated depth, alpha (`cpu::raster::OUT_CHANNELS`).
-pub const OUT_CHANNELS: usize = 5;
+/// Tile side in pixels ([`crate::config::TILE_SIZE`]); the cube is TILE x TILE threads.
+pub const TILE: u32 = crate::config::TILE_SIZE;
+/// Channels written per pixel: R, G, B, accumulated depth, alpha (the CPU path's layout).
+pub const OUT_CHANNELS: usize = crate::cpu::raster::OUT_CHANNELS;
 
 /// The per-splat evaluation of `Splat::eval`: `(dx, dy, vis, alpha, skip)`.
 #[derive(CubeType, Clone, Copy)]

@@ -7,11 +7,10 @@
 
 use crate::common::{threshold_mask, View};
 use burn::tensor::{DType, Device, Tensor, TensorData};
-use envision4d_splat::kernels::launch::force_cas_atomics;
 use envision4d_splat::testkit::{
     intrinsics, look_at, random_scene, wgpu_test_device, HostScene, SceneSpec, SplitMix64,
 };
-use envision4d_splat::{render, Cameras, Gaussians, RasterConfig};
+use envision4d_splat::{render, Cameras, GradAccumulation, Gaussians, RasterConfig};
 use std::panic::{catch_unwind, AssertUnwindSafe};
 
 /// Image tolerance (absolute for colour and alpha, relative for the accumulated depth).
@@ -238,18 +237,11 @@ fn wgpu_matches_cpu_two_views() {
 fn wgpu_cas_atomics_match_cpu() {
     let (w, h) = (40, 33);
     let scene = random_scene(120, 11, SceneSpec::default());
-    force_cas_atomics(true);
-    let res = catch_unwind(|| {
-        check_parity(
-            &scene,
-            &two_views(w, h)[..1],
-            w,
-            h,
-            &RasterConfig::default(),
-        )
-    });
-    force_cas_atomics(false);
-    res.unwrap_or_else(|e| std::panic::resume_unwind(e));
+    let cas = RasterConfig {
+        grad_accumulation: GradAccumulation::CompareAndSwap,
+        ..RasterConfig::default()
+    };
+    check_parity(&scene, &two_views(w, h)[..1], w, h, &cas);
 }
 
 /// Guards partial tiles: a 17x1 image has two tiles, each mostly outside the image, so

@@ -3,7 +3,8 @@
 use burn::module::{Module, ModuleVisitor, Param};
 use burn::tensor::{Device, Tensor};
 use envision4d_data::synth::{render_clip, Preset, SynthConfig};
-use envision4d_train::batch::{Batch, HostClip};
+use envision4d_data::HostClip;
+use envision4d_train::batch::Batch;
 use envision4d_train::config::Teacher;
 use envision4d_train::TrainConfig;
 use std::path::PathBuf;
@@ -49,7 +50,7 @@ pub fn synth_clip(seed: u64) -> HostClip {
     let frames = r
         .frames
         .iter()
-        .map(|f| envision4d_train::data::hwc_to_chw(&f.rgb, H, W))
+        .map(|f| envision4d_data::hwc_to_chw(&f.rgb, H, W))
         .collect();
     HostClip {
         height: H,

@@ -1,17 +1,17 @@
-//! `envision4d_train::eval`: one tiny-model evaluation checked for completeness and against
+//! `envision4d_eval` on a model built by training's `build_model`: one tiny-model evaluation checked for completeness and against
 //! metrics computed directly, plus the host pose math, the sweep helpers and the means.
 
 use crate::common::{synth_clip, tiny_config};
 use burn::tensor::Device;
 use envision4d_data::geom::{Mat4, Vec3};
 use envision4d_losses::{psnr, LpipsStatus};
-use envision4d_train::eval::baselines::clip_images;
-use envision4d_train::eval::pose_error::{
+use envision4d_eval::baselines::clip_images;
+use envision4d_eval::pose_error::{
     extrapolate_constant_velocity, pose_error, relative_to_first,
 };
-use envision4d_train::eval::sweep::{mark_pareto, summarize, with_horizon, Knob, SweepSetting};
-use envision4d_train::eval::{
-    evaluate_clip, future_frames, mean_metrics, ClipMetrics, EvalOptions, Extent, Method,
+use envision4d_eval::sweep::{mark_pareto, summarize, with_horizon, Knob, SweepSetting};
+use envision4d_eval::{
+    evaluate_clip, mean_metrics, ClipMetrics, EvalOptions, Extent, Method,
 };
 use envision4d_train::step::build_model;
 
@@ -147,7 +147,7 @@ fn horizon_knob_truncates_future_frames() {
     let cfg = tiny_config();
     let model = build_model(&cfg, &Device::flex()).unwrap();
     let short = with_horizon(&model, 1).unwrap();
-    assert_eq!(future_frames(&short), 1);
+    assert_eq!(short.future_frames(), 1);
     assert!(with_horizon(&model, 3).is_err());
     let mut opts = options();
     opts.extent = Extent::FutureOnly;

@@ -159,8 +159,8 @@ fn backbone_stage_then_teacher() {
     c.loss.lambda_depth = 0.1;
     let mut t = Trainer::new(c.clone(), &device).unwrap();
     let gs_before = flat_params(&t.model.gs_head);
-    let hc = envision4d_train::batch::HostClip::from_clip(
-        &envision4d_train::data::open_dataset(&c.data, &c.model, &data)
+    let hc = envision4d_data::HostClip::from_clip(
+        &envision4d_train::dataset::open_dataset(&c.data, &c.model, &data)
             .unwrap()
             .load(0)
             .unwrap(),
@@ -236,7 +236,7 @@ fn data_parallel_gradients_equal_single_device_gradients() {
     c.progressive.warmup_iterations = 0;
     let clips = [crate::common::synth_clip(3), crate::common::synth_clip(9)];
     let sky =
-        |c: &envision4d_train::batch::HostClip| c.depths[0].iter().filter(|d| **d == 0.0).count();
+        |c: &envision4d_data::HostClip| c.depths[0].iter().filter(|d| **d == 0.0).count();
     assert_ne!(
         sky(&clips[0]),
         sky(&clips[1]),

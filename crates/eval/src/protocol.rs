@@ -4,36 +4,33 @@
 //! from the other frames' Gaussians (the cross-frame table). D-RMSE uses the context depth
 //! maps, AUC@30 and the future-pose errors use ground-truth cameras where the clip has them.
 
-use crate::batch::HostClip;
-use crate::error::{Result, TrainError};
-use crate::eval::baselines::{
+use crate::baselines::{
     clip_images, constant_intrinsics, constant_velocity_poses, copy_last_images, copy_last_poses,
 };
-use crate::eval::pose_error::{
+use crate::pose_error::{
     extrinsics_tensor, host_extrinsics, pose_error, relative_to_first, to_extrinsic,
 };
-use crate::eval::report::{
+use crate::report::{
     mean, mean_opt, ClipMetrics, CrossFrameScore, DepthScore, FrameScore, HorizonScore, Method,
     MethodScore, Timing,
 };
-use crate::eval::{future_frames, model_device, EvalOptions, Extent};
-use crate::infer::{predict_scene, Scene};
-use crate::step::render_targets;
+use crate::error::{EvalError, Result};
+use crate::{EvalOptions, Extent};
 use burn::tensor::{Device, Tensor, TensorData};
 use envision4d_data::geom::Mat4;
 use envision4d_data::resize::resize_bilinear;
-use envision4d_data::Image;
+use envision4d_data::{HostClip, Image};
 use envision4d_losses::{
     camera_auc30, depth_rmse, evaluate_images, AlignmentScope, DepthAlignment, HostDepths,
     HostImages, ImageMetrics,
 };
 use envision4d_model::adapter::{AdaptedGaussians, Exclusion};
+use envision4d_model::scene::{predict_scene, render_targets, Scene};
 use envision4d_model::Envision4d;
 use std::time::Instant;
 
-/// PSNR of identical images is +inf in the release; it is reported as this many dB so
-/// means stay finite and JSON stays numeric. Real renders never come close.
-pub const PSNR_CAP_DB: f64 = 100.0;
+pub use crate::score::PSNR_CAP_DB;
+use crate::score::reported_psnr;
 
 /// Evaluates one clip (`T_c + T_f` frames or more; extra frames are ignored).
 pub fn evaluate_clip(
@@ -42,21 +39,21 @@ pub fn evaluate_clip(
     opts: &EvalOptions,
 ) -> Result<ClipMetrics> {
     let tc = opts.context_frames;
-    let tf = future_frames(model);
+    let tf = model.future_frames();
     let n = tc + tf;
     if tc < 2 || clip.frames.len() < n {
-        return Err(TrainError::Batch(format!(
+        return Err(EvalError::Unscorable(format!(
             "clip has {} frames; evaluation needs T_c + T_f = {tc} + {tf} (T_c >= 2)",
             clip.frames.len()
         )));
     }
     let size = [clip.height, clip.width];
     let input = opts.input_size.unwrap_or(size);
-    let device = model_device(model);
+    let device = model.device();
     let context = context_tensor(clip, tc, input, &device);
 
     let clock = Instant::now();
-    let scene = predict_scene(model, context, 0)?;
+    let scene = predict_scene(model, context)?;
     sync(&device)?;
     let encoder_s = clock.elapsed().as_secs_f64();
 
@@ -105,7 +102,7 @@ pub fn evaluate_clip(
     })
 }
 
-/// The three baselines of [`crate::eval::baselines`], scored like the model.
+/// The three baselines of [`crate::baselines`], scored like the model.
 fn baselines(
     scene: &Scene,
     clip: &HostClip,
@@ -169,7 +166,7 @@ impl Scorer<'_> {
                 HorizonScore {
                     horizon: k + 1,
                     frame: j,
-                    psnr: m.psnr[k].min(PSNR_CAP_DB),
+                    psnr: reported_psnr(m.psnr[k]),
                     ssim: m.ssim[k],
                     lpips: lpips_at(&m, k),
                     rot_err_deg: err.map(|e| e.rotation_deg),
@@ -209,7 +206,7 @@ fn cross_frame(pred: &HostImages, gt: &HostImages, opts: &EvalOptions) -> Result
     let per_frame: Vec<FrameScore> = (0..m.psnr.len())
         .map(|j| FrameScore {
             frame: j,
-            psnr: m.psnr[j].min(PSNR_CAP_DB),
+            psnr: reported_psnr(m.psnr[j]),
             ssim: m.ssim[j],
             lpips: lpips_at(&m, j),
         })
@@ -316,7 +313,7 @@ fn timed_render(
 fn sync(device: &Device) -> Result<()> {
     device
         .sync()
-        .map_err(|e| TrainError::Model(format!("device sync failed: {e:?}")))
+        .map_err(|e| EvalError::Device(format!("sync failed: {e:?}")))
 }
 
 /// Intrinsics predicted for an `input`-sized image, rescaled to render at `output` size

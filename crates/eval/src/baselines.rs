@@ -1,20 +1,20 @@
 //! The baselines every number is reported next to (all on the same clips):
 //!
-//! - **copy-last** ([`crate::eval::Method::CopyLast`]): every future frame is the last
+//! - **copy-last** ([`crate::Method::CopyLast`]): every future frame is the last
 //!   context frame; its poses are the model's last context pose repeated (a pose-free method
 //!   has no other pose to offer, and this keeps the comparison about the future).
-//! - **static + constant velocity** ([`crate::eval::Method::StaticCv`]): the model's
+//! - **static + constant velocity** ([`crate::Method::StaticCv`]): the model's
 //!   Gaussians with motion disabled, rendered at future poses extrapolated at constant SE(3)
 //!   velocity from the model's own predicted context poses; intrinsics are the last context
 //!   frame's.
-//! - **no motion** ([`crate::eval::Method::NoMotion`]): the model's own future poses, zero
+//! - **no motion** ([`crate::Method::NoMotion`]): the model's own future poses, zero
 //!   motion (what the motion head adds).
 
-use crate::batch::HostClip;
-use crate::error::{Result, TrainError};
-use crate::eval::pose_error::extrapolate_constant_velocity;
+use crate::error::{EvalError, Result};
+use crate::pose_error::extrapolate_constant_velocity;
 use burn::tensor::Tensor;
 use envision4d_data::geom::Mat4;
+use envision4d_data::HostClip;
 use envision4d_losses::HostImages;
 
 /// Ground-truth frames `frames` of a clip as host images `[F, 3, H, W]`.
@@ -23,7 +23,7 @@ pub fn clip_images(clip: &HostClip, frames: &[usize]) -> Result<HostImages> {
     let mut data = Vec::with_capacity(frames.len() * 3 * h * w);
     for &j in frames {
         let f = clip.frames.get(j).ok_or_else(|| {
-            TrainError::Batch(format!(
+            EvalError::Unscorable(format!(
                 "clip has {} frames, frame {j} requested",
                 clip.frames.len()
             ))

@@ -6,9 +6,11 @@
 //! the same frame with `G_j · G_0⁻¹`. The prediction is re-expressed the same way
 //! (`P_j · P_0⁻¹`) because the predicted frame-0 pose is close to, not exactly, the identity.
 
-use crate::error::{Result, TrainError};
+use crate::error::Result;
+use envision4d_model::SceneError;
 use burn::tensor::{Device, Tensor, TensorData};
 use envision4d_data::geom::Mat4;
+use glam::DVec3;
 use envision4d_losses::Extrinsic;
 
 /// Entries of one 4×4 matrix.
@@ -34,7 +36,7 @@ pub fn host_extrinsics(extrinsics: &Tensor<4>, b: usize) -> Result<Vec<Mat4>> {
         .iter::<f64>()
         .collect();
     if values.iter().any(|v| !v.is_finite()) {
-        return Err(TrainError::NonFinite("predicted extrinsics"));
+        return Err(SceneError::NonFinite("predicted extrinsics").into());
     }
     Ok(values
         .chunks_exact(MAT4_LEN)
@@ -67,17 +69,21 @@ pub fn to_extrinsic(m: &Mat4) -> Extrinsic {
 /// `atan2(sin θ, cos θ)` with `cos θ = (tr R − 1)/2` and `sin θ = ‖vee(R − Rᵀ)‖/2`: unlike
 /// `acos` of the cosine alone it stays accurate for the tiny angles good predictions have.
 pub fn rotation_angle_deg(m: &Mat4) -> f64 {
-    let r = &m.0;
-    let cos = (r[0][0] + r[1][1] + r[2][2] - 1.0) / 2.0;
-    let axis = [r[2][1] - r[1][2], r[0][2] - r[2][0], r[1][0] - r[0][1]];
-    let sin = axis.iter().map(|v| v * v).sum::<f64>().sqrt() / 2.0;
+    let r = m.rotation();
+    let cos = (r.x_axis.x + r.y_axis.y + r.z_axis.z - 1.0) / 2.0;
+    // vee(R − Rᵀ) = (R₂₁ − R₁₂, R₀₂ − R₂₀, R₁₀ − R₀₁); glam's columns are `r.col(c)[row]`.
+    let axis = DVec3::new(
+        r.y_axis.z - r.z_axis.y,
+        r.z_axis.x - r.x_axis.z,
+        r.x_axis.y - r.y_axis.x,
+    );
+    let sin = axis.length() / 2.0;
     sin.atan2(cos).to_degrees()
 }
 
 /// Camera centre `−Rᵀt` of a world-to-camera matrix, in world coordinates.
-pub fn camera_centre(m: &Mat4) -> [f64; 3] {
-    let inv = m.rigid_inverse();
-    [inv.0[0][3], inv.0[1][3], inv.0[2][3]]
+pub fn camera_centre(m: &Mat4) -> DVec3 {
+    m.rigid_inverse().translation()
 }
 
 /// `poses[j] · poses[0]⁻¹` for every j: the poses with frame 0's camera as the world.
@@ -93,8 +99,7 @@ pub fn relative_to_first(poses: &[Mat4]) -> Vec<Mat4> {
 /// frame 0 (`pred_rel`, `gt_rel` from [`relative_to_first`]).
 pub fn pose_error(pred_rel: &Mat4, gt_rel: &Mat4) -> PoseError {
     let diff = pred_rel.mul(&gt_rel.rigid_inverse());
-    let (a, b) = (camera_centre(pred_rel), camera_centre(gt_rel));
-    let translation_m = (0..3).map(|k| (a[k] - b[k]).powi(2)).sum::<f64>().sqrt();
+    let translation_m = camera_centre(pred_rel).distance(camera_centre(gt_rel));
     PoseError {
         rotation_deg: rotation_angle_deg(&diff),
         translation_m,

@@ -1,4 +1,4 @@
-//! Evaluation of a trained model on held-out clips (issue 7): the paper's future-frame
+//! `envision4d-eval`: evaluation of a trained model on held-out clips (paper §4): the future-frame
 //! protocol, the cross-frame context table, D-RMSE, camera AUC@30, future-pose errors per
 //! horizon, three baselines on the same clips, timings, and the quality-vs-time sweep.
 //!
@@ -8,15 +8,19 @@
 //! - [`report`]: the JSON schema (`docs/EVAL.md`) and means over clips; [`markdown`]: the
 //!   Markdown tables.
 //! - [`sweep`]: the knobs that trade quality for time, and the Pareto front.
+//! - [`score`]: per-frame PSNR of rendered views, the one definition the protocol, training's
+//!   periodic validation and its log share.
 //!
-//! Training's periodic validation calls [`evaluate_clip`] (or [`evaluate_dataset`]) with a
-//! model on a plain (non-autodiff) device, so no graph is recorded.
+//! The crate depends on the model, losses and data crates, never on training: training's
+//! validation calls [`score`] with a model on a plain (non-autodiff) device.
 
 pub mod baselines;
+pub mod error;
 pub mod markdown;
 pub mod pose_error;
 pub mod protocol;
 pub mod report;
+pub mod score;
 pub mod sweep;
 
 pub use markdown::{markdown, summary};
@@ -25,12 +29,10 @@ pub use report::{
     mean_metrics, ClipMetrics, CrossFrameScore, DepthScore, FrameScore, HorizonScore, Method,
     MethodScore, Report, Timing,
 };
+pub use error::{EvalError, Result};
 pub use sweep::{SweepPoint, SweepSetting};
 
-use crate::batch::HostClip;
-use crate::error::{Result, TrainError};
-use burn::tensor::Device;
-use envision4d_data::ClipDataset;
+use envision4d_data::{ClipDataset, HostClip};
 use envision4d_losses::{DepthAlignment, EvalCrop, LpipsStatus};
 use envision4d_model::Envision4d;
 use envision4d_splat::RasterConfig;
@@ -79,16 +81,6 @@ impl EvalOptions {
     }
 }
 
-/// `T_f` of a model: the number of learned future seeds.
-pub fn future_frames(model: &Envision4d) -> usize {
-    model.future.extra_token_offset.dims()[1]
-}
-
-/// The device a model's parameters live on (inputs are created there).
-pub fn model_device(model: &Envision4d) -> Device {
-    model.future.extra_token_offset.val().device()
-}
-
 /// Clips evaluated by [`evaluate_dataset`].
 #[derive(Debug, Clone)]
 pub struct EvalRun {
@@ -117,9 +109,8 @@ pub fn evaluate_dataset(
             continue;
         };
         let id = clip.id.clone();
-        let named = |e: TrainError| TrainError::Batch(format!("clip {id}: {e}"));
-        let host = HostClip::from_clip(&clip).map_err(|e| named(e))?;
-        let mut m = evaluate_clip(model, &host, opts).map_err(|e| named(e))?;
+        let host = HostClip::from_clip(&clip).map_err(|e| EvalError::from(e).in_clip(&id))?;
+        let mut m = evaluate_clip(model, &host, opts).map_err(|e| e.in_clip(&id))?;
         m.clip = id.clone();
         on_clip(&m);
         run.clips.push(m);

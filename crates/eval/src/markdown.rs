@@ -2,8 +2,7 @@
 //! depth, timing, the Pareto table of a sweep, and one row per clip); and the plain-text
 //! lines printed while and after evaluating (quality next to the time it cost).
 
-use crate::eval::report::{ClipMetrics, Method, Report};
-use crate::eval::sweep::SweepPoint;
+use crate::report::{ClipMetrics, Method, Report, SweepPoint};
 use std::fmt::Write;
 
 /// Text for a missing value.

@@ -1,0 +1,196 @@
+//! The scene path, the one way from context frames to rendered views that training,
+//! validation, evaluation, `render` and `demo` all take (paper §3.1-§3.4):
+//!
+//! 1. [`predict_scene`]: the network on the context frames (every head), its cameras rebuilt
+//!    from a FoV-clamped pose encoding (so an untrained head still renders), and the
+//!    Gaussians lifted to world space with their motion to every timestamp.
+//! 2. [`Scene::gaussians_at`]: the Gaussians as seen at time `j`, either self-exclusive
+//!    (every frame from the *other* frames' Gaussians, paper §3.4) or, for the geometric
+//!    warm-up, including the target's own.
+//! 3. [`Scene::render`] / [`render_targets`]: those Gaussians through the predicted cameras
+//!    with the rasterizer of `envision4d-splat`.
+
+use crate::adapter::{gaussians_at, AdaptedGaussians, Exclusion, OpacityMapping};
+use crate::model::{Envision4d, Heads, Predictions};
+use crate::pose::{pose_encoding_to_extri_intri, FOV};
+use burn::tensor::Tensor;
+use envision4d_splat::{render, Cameras, Gaussians, RasterConfig, RenderError};
+
+/// Smallest FoV (radians, ~3°) a predicted camera may have.
+pub const FOV_MIN_RAD: f64 = 0.05;
+/// Largest FoV (radians, ~172°), wider than any real camera.
+pub const FOV_MAX_RAD: f64 = 3.0;
+
+/// Why a scene could not be predicted or rendered.
+#[derive(Debug, thiserror::Error)]
+pub enum SceneError {
+    /// A prediction the scene needs is NaN or infinite (an untrained or diverging model):
+    /// training's NaN guard skips the step rather than ending the run.
+    #[error("non-finite {0}")]
+    NonFinite(&'static str),
+    /// The model was built without a head the scene needs.
+    #[error("the scene needs the depth, Gaussian and motion heads")]
+    MissingHeads,
+    #[error("render: {0}")]
+    Render(#[from] RenderError),
+}
+
+pub type Result<T> = std::result::Result<T, SceneError>;
+
+/// A predicted scene: the raw predictions (poses of all `N` frames, depth, ...) and the
+/// world-space Gaussians with their motion to every timestamp.
+#[derive(Debug, Clone)]
+pub struct Scene {
+    pub pred: Predictions,
+    pub adapted: AdaptedGaussians,
+}
+
+/// Clamps the FoV channels of pose encodings `[B, N, 9]` to
+/// [`FOV_MIN_RAD`, `FOV_MAX_RAD`] (the gradient passes inside the range).
+///
+/// The camera head's FoV activation is a ReLU, so an untrained or diverging head can
+/// predict FoV 0 (an infinite focal length) that the renderer rightly refuses.
+pub fn clamp_fov(pose: Tensor<3>) -> Tensor<3> {
+    let [b, n, _] = pose.dims();
+    let fov = pose
+        .clone()
+        .slice([0..b, 0..n, FOV])
+        .clamp(FOV_MIN_RAD, FOV_MAX_RAD);
+    pose.slice_assign([0..b, 0..n, FOV], fov)
+}
+
+fn all_finite(t: &Tensor<4>) -> bool {
+    !t.clone()
+        .is_finite()
+        .bool_not()
+        .any()
+        .into_data()
+        .iter::<bool>()
+        .any(|b| b)
+}
+
+/// Forward on `context [B, T_c, 3, H, W]` with every head, cameras rebuilt from the
+/// FoV-clamped pose encoding, then lifted to world space.
+pub fn predict_scene(model: &Envision4d, context: Tensor<5>) -> Result<Scene> {
+    let [_, _, _, h, w] = context.dims();
+    let mut pred = model.forward(context, Heads::ALL);
+    let pose = pred.backbone.pose_enc();
+    if !pose.clone().into_data().iter::<f64>().all(f64::is_finite) {
+        return Err(SceneError::NonFinite("pose encoding"));
+    }
+    let (extr, intr) = renderable_cameras(pose, h, w);
+    // A finite encoding can still decode to NaN cameras (a zero quaternion).
+    if !all_finite(&extr) || !all_finite(&intr) {
+        return Err(SceneError::NonFinite("camera"));
+    }
+    pred.backbone.extrinsics = extr;
+    pred.backbone.intrinsics = intr;
+    // The release's opacity schedule is the identity for every shipped config, so the
+    // scene path uses it at its default.
+    let adapted = model
+        .adapt(&pred, OpacityMapping::default(), 0)
+        .ok_or(SceneError::MissingHeads)?;
+    Ok(Scene { pred, adapted })
+}
+
+/// Cameras `(extrinsics [B, N, 4, 4], intrinsics [B, N, 3, 3])` of pose encodings for an
+/// `h x w` image, with the FoV clamped so they always render.
+pub fn renderable_cameras(pose: Tensor<3>, h: usize, w: usize) -> (Tensor<4>, Tensor<4>) {
+    pose_encoding_to_extri_intri(clamp_fov(pose), h, w)
+}
+
+/// Backbone and camera head only (no dense head: what a poses-only command needs), with the
+/// cameras rebuilt as [`predict_scene`] rebuilds them, so both give the same poses.
+pub fn predict_cameras(model: &Envision4d, context: Tensor<5>) -> Predictions {
+    let [_, _, _, h, w] = context.dims();
+    let mut pred = model.forward(context, Heads::NONE);
+    let (extr, intr) = renderable_cameras(pred.backbone.pose_enc(), h, w);
+    pred.backbone.extrinsics = extr;
+    pred.backbone.intrinsics = intr;
+    pred
+}
+
+impl Scene {
+    /// The same scene with every displacement zeroed (the "motion disabled" baseline, the
+    /// static geometric warm-up: Gaussians stay where their frame put them).
+    pub fn without_motion(&self) -> Scene {
+        let mut s = self.clone();
+        s.adapted.motions = s.adapted.motions.zeros_like();
+        s
+    }
+
+    /// The Gaussians of batch element `b` at timestamp `j` as the rasterizer takes them.
+    pub fn gaussians_at(&self, b: usize, j: usize, exclusion: Exclusion) -> Gaussians {
+        gaussians_for(&self.adapted, b, j, exclusion)
+    }
+
+    /// Renders frames `targets` of batch element `b` through the scene's own (predicted)
+    /// cameras at `size = [H, W]`; returns `[F, 3, H, W]`.
+    pub fn render(
+        &self,
+        b: usize,
+        targets: &[usize],
+        exclusion: Exclusion,
+        size: [usize; 2],
+        raster: &RasterConfig,
+    ) -> Result<Tensor<4>> {
+        let bb = &self.pred.backbone;
+        render_targets(
+            &self.adapted,
+            &bb.extrinsics,
+            &bb.intrinsics,
+            b,
+            targets,
+            exclusion,
+            size,
+            raster,
+        )
+    }
+}
+
+/// The Gaussians of batch element `b` at timestamp `j` as the rasterizer takes them.
+pub fn gaussians_for(a: &AdaptedGaussians, b: usize, j: usize, exclusion: Exclusion) -> Gaussians {
+    let (means, quats, scales, opacities, colors) = gaussians_at(a, b, j, exclusion);
+    Gaussians {
+        means,
+        quats,
+        scales,
+        opacities,
+        colors,
+    }
+}
+
+/// Renders target frames `targets` of batch element `b` (each from the Gaussians at that
+/// time under `exclusion`) with cameras `extrinsics [B, N, 4, 4]` / `intrinsics
+/// [B, N, 3, 3]`; returns `[F, 3, H, W]`.
+#[allow(clippy::too_many_arguments)]
+pub fn render_targets(
+    adapted: &AdaptedGaussians,
+    extrinsics: &Tensor<4>,
+    intrinsics: &Tensor<4>,
+    b: usize,
+    targets: &[usize],
+    exclusion: Exclusion,
+    size: [usize; 2],
+    raster: &RasterConfig,
+) -> Result<Tensor<4>> {
+    let mut frames = Vec::with_capacity(targets.len());
+    for &j in targets {
+        let g = gaussians_for(adapted, b, j, exclusion);
+        let cams = Cameras {
+            viewmats: extrinsics
+                .clone()
+                .slice([b..b + 1, j..j + 1, 0..4, 0..4])
+                .reshape([1, 4, 4]),
+            ks: intrinsics
+                .clone()
+                .slice([b..b + 1, j..j + 1, 0..3, 0..3])
+                .reshape([1, 3, 3]),
+            width: size[1] as u32,
+            height: size[0] as u32,
+        };
+        let out = render(&g, &cams, raster)?;
+        frames.push(out.rgb.permute([0, 3, 1, 2]));
+    }
+    Ok(Tensor::cat(frames, 0))
+}
