@@ -19,11 +19,11 @@ use burn::tensor::{Tensor, TensorData};
 use clap::Args;
 use envision4d_data::atomic;
 use envision4d_data::synth::{render_clip, write_clip, Preset, SynthConfig, DEFAULT_SUPERSAMPLE};
+use envision4d_data::HostClip;
+use envision4d_eval::{evaluate_dataset, EvalOptions};
 use envision4d_model::checkpoint::checkpoint_config;
 use envision4d_model::ModelConfig;
-use envision4d_data::HostClip;
 use envision4d_train::config::{DataConfig, DataLayout};
-use envision4d_eval::{evaluate_dataset, EvalOptions};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::{Path, PathBuf};
 use std::time::{SystemTime, UNIX_EPOCH};
@@ -237,9 +237,9 @@ pub fn run(args: DemoArgs) -> Result<()> {
     bar.finish_and_clear();
 
     print!("{}", print::scores(&report));
-    let mut paths = vec![(CLIP_ROOT.to_string(), clip_dir)];
+    let mut paths = vec![(CLIP_ROOT.to_owned(), clip_dir)];
     paths.extend(metrics.into_iter().map(|p| (print::file_label(&p), p)));
-    paths.push((RENDER_DIR.to_string(), args.out.join(RENDER_DIR)));
+    paths.push((RENDER_DIR.to_owned(), args.out.join(RENDER_DIR)));
     if let Some(manifest) = written.manifest {
         paths.push((print::file_label(&manifest), manifest));
     }

@@ -9,14 +9,12 @@ use crate::InputError;
 use anyhow::{Context, Result};
 use clap::{Args, ValueEnum};
 use envision4d_data::{atomic, ClipDataset, Split};
+use envision4d_eval::sweep::{mark_pareto, plan, summarize, with_horizon, SweepBase};
+use envision4d_eval::{evaluate_dataset, summary, EvalOptions, Report, SweepPoint};
 use envision4d_losses::{DepthAlignment, EvalCrop};
 use envision4d_model::checkpoint::checkpoint_config;
 use envision4d_model::{Envision4d, ModelConfig};
 use envision4d_train::config::{DataConfig, DataLayout};
-use envision4d_eval::sweep::{mark_pareto, plan, summarize, with_horizon, SweepBase};
-use envision4d_eval::{
-    evaluate_dataset, summary, EvalOptions, Report, SweepPoint,
-};
 use indicatif::{ProgressBar, ProgressStyle};
 use shared::{backend_name, build_report, load_model, lpips_status, warm_up, Provenance};
 use std::path::{Path, PathBuf};
@@ -222,8 +220,9 @@ pub fn run(args: EvalArgs) -> Result<()> {
         None => (model, setup.model.clone()),
     };
     let cfg = &horizon_cfg;
-    let dataset = envision4d_train::dataset::open_dataset(&setup.data, &dataset_cfg, &setup.data.root)
-        .map_err(|e| InputError(e.to_string()))?;
+    let dataset =
+        envision4d_train::dataset::open_dataset(&setup.data, &dataset_cfg, &setup.data.root)
+            .map_err(|e| InputError(e.to_string()))?;
     let mut indices: Vec<usize> = match setup.clips {
         Selection::All => (0..dataset.len()).collect(),
         Selection::Split(split) => envision4d_train::dataset::split(&dataset, split, setup.seed),
@@ -326,7 +325,7 @@ fn run_sweep(
                     "sweep {:<22} PSNR {:6.2} dB  SSIM {:.4}  | {:.3} s/clip (encoder {:.3} + decoder {:.3})",
                     p.value,
                     p.psnr, p.ssim, p.time_s, p.encoder_s, p.decoder_s
-                )
+                );
             });
             points.push(p);
         }

@@ -135,7 +135,7 @@ fn check_size(
         bail!(
             "cannot write {}: {width}x{height} image with {channels} channel(s) needs {} values, got {len}",
             path.display(),
-            expected.map_or("more than usize::MAX".to_string(), |n| n.to_string())
+            expected.map_or("more than usize::MAX".to_owned(), |n| n.to_string())
         );
     }
     Ok(())

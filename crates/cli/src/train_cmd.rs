@@ -81,8 +81,7 @@ pub fn run(args: TrainArgs) -> Result<()> {
             devices,
         },
         &mut bar,
-    )
-    ?;
+    )?;
     bar.0.finish();
     println!(
         "trained {} steps ({} skipped); model {}; last checkpoint {}; log {}",

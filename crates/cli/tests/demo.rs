@@ -110,7 +110,7 @@ fn printed_paths(stdout: &str) -> BTreeMap<String, PathBuf> {
         .skip_while(|l| l.trim() != WROTE)
         .skip(1)
         .filter_map(|l| l.trim_start().split_once(": "))
-        .map(|(label, path)| (label.to_string(), PathBuf::from(path)))
+        .map(|(label, path)| (label.to_owned(), PathBuf::from(path)))
         .collect()
 }
 

@@ -99,7 +99,7 @@ fn key_paths(v: &serde_json::Value, prefix: &str, out: &mut BTreeSet<String>) {
                 out.insert(path.clone());
                 if path != "raster" {
                     let fold = if path == "mean" {
-                        "clips[]".to_string()
+                        "clips[]".to_owned()
                     } else {
                         path
                     };
@@ -128,7 +128,7 @@ fn documented_keys() -> BTreeSet<String> {
         .lines()
         .filter_map(|l| l.strip_prefix("| `"))
         .filter_map(|l| l.split('`').next())
-        .map(str::to_string)
+        .map(str::to_owned)
         .collect()
 }
 
@@ -217,7 +217,7 @@ fn stride_scores_every_window_of_a_long_clip() {
             .as_array()
             .unwrap()
             .iter()
-            .map(|c| c["clip"].as_str().unwrap().to_string())
+            .map(|c| c["clip"].as_str().unwrap().to_owned())
             .collect();
         let want: Vec<String> = want.iter().map(|k| format!("clip_000000@{k}")).collect();
         assert_eq!(names, want, "--stride {stride}");

@@ -196,7 +196,7 @@ fn train_dry_run_and_config_typo() {
         .next()
         .unwrap()
         .trim()
-        .to_string();
+        .to_owned();
     std::fs::write(
         &bad,
         text.replacen(&format!("{first_key} = "), &format!("{first_key}x = "), 1),

@@ -125,9 +125,9 @@ fn manifest(out: &Path) -> Vec<(String, String, Option<String>)> {
         .iter()
         .map(|f| {
             (
-                f["path"].as_str().unwrap().to_string(),
-                f["kind"].as_str().unwrap().to_string(),
-                f["step"].as_str().map(str::to_string),
+                f["path"].as_str().unwrap().to_owned(),
+                f["kind"].as_str().unwrap().to_owned(),
+                f["step"].as_str().map(str::to_owned),
             )
         })
         .collect()

@@ -138,7 +138,7 @@ fn cli_exr_equals_library_render() {
         &out,
         |res, _| vec![[0f32; 3]; res.width() * res.height()],
         |px: &mut Vec<[f32; 3]>, pos, (r, g, b, _a): (f32, f32, f32, f32)| {
-            px[pos.y() * 64 + pos.x()] = [r, g, b]
+            px[pos.y() * 64 + pos.x()] = [r, g, b];
         },
     )
     .unwrap();
@@ -170,8 +170,8 @@ fn bad_inputs_exit_2_with_a_named_problem() {
     let (ply, _) = random_ply(d, 10);
     let good_cam = write(d, "good.json", CAMERA);
     let out = d.join("out.png");
-    let ply_s = ply.to_str().unwrap().to_string();
-    let cam_s = good_cam.to_str().unwrap().to_string();
+    let ply_s = ply.to_str().unwrap().to_owned();
+    let cam_s = good_cam.to_str().unwrap().to_owned();
 
     let garbage = write(d, "garbage.ply", "this is not a ply file");
     let header_only = write(

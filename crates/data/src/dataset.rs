@@ -111,7 +111,9 @@ impl ClipDataset {
             Layout::Synth { stride } => synth::scan(root, &config.spec, *stride)?,
         };
         let skips = SkipLog::default();
-        skipped.into_iter().for_each(|m| skips.warn(m));
+        for m in skipped {
+            skips.warn(m);
+        }
         if entries.is_empty() {
             return Err(DataError::NoClips {
                 root: root.to_path_buf(),
@@ -173,10 +175,10 @@ impl ClipDataset {
         match self.load(index) {
             Ok(clip) => Some(clip),
             Err(e) => {
-                if let Ok(mut f) = self.failed.lock() {
-                    if let Some(slot) = f.get_mut(index) {
-                        *slot = true;
-                    }
+                if let Ok(mut f) = self.failed.lock()
+                    && let Some(slot) = f.get_mut(index)
+                {
+                    *slot = true;
                 }
                 let id = self.entries.get(index).map_or("?", |e| e.id.as_str());
                 self.skips.warn(format!("clip {id}: {e}"));

@@ -103,8 +103,9 @@ pub fn encode_npy_f32(shape: &[usize], data: &[f32]) -> Vec<u8> {
     out.extend_from_slice(&[1, 0]);
     out.extend_from_slice(&(header.len() as u16).to_le_bytes());
     out.extend_from_slice(header.as_bytes());
-    data.iter()
-        .for_each(|v| out.extend_from_slice(&v.to_le_bytes()));
+    for v in data {
+        out.extend_from_slice(&v.to_le_bytes());
+    }
     out
 }
 
@@ -129,8 +130,8 @@ mod tests {
     #[test]
     fn overflowing_shape_is_rejected() {
         let dict = "{'descr': '<f4', 'fortran_order': False, 'shape': (4294967296, 4294967296), }";
-        let mut header = dict.to_string();
-        while (10 + header.len() + 1) % 64 != 0 {
+        let mut header = dict.to_owned();
+        while !(10 + header.len() + 1).is_multiple_of(64) {
             header.push(' ');
         }
         header.push('\n');

@@ -28,10 +28,10 @@ impl<T: Send + 'static> Prefetch<T> {
         let (tx, rx) = sync_channel(depth.max(1));
         let worker = std::thread::spawn(move || {
             for item in items {
-                if let Some(v) = f(item) {
-                    if tx.send(v).is_err() {
-                        return; // the consumer went away
-                    }
+                if let Some(v) = f(item)
+                    && tx.send(v).is_err()
+                {
+                    return; // the consumer went away
                 }
             }
         });

@@ -115,7 +115,9 @@ fn axis_taps(n_in: usize, n_out: usize) -> Vec<Taps> {
                 .collect();
             let sum: f32 = weights.iter().sum();
             // Edge taps outside the image are dropped and the rest renormalised.
-            weights.iter_mut().for_each(|w| *w /= sum);
+            for w in &mut weights {
+                *w /= sum;
+            }
             Taps { start: lo, weights }
         })
         .collect()

@@ -138,7 +138,7 @@ fn bad_images_name_the_file_and_are_skipped() {
     let got: Vec<String> = Prefetcher::new(ds.clone(), (0..5).collect(), 2)
         .map(|c| c.id.clone())
         .collect();
-    assert_eq!(got, vec!["good@0".to_string()]);
+    assert_eq!(got, vec!["good@0".to_owned()]);
     assert_eq!(ds.skipped(), 4);
     // Asking again does not count twice.
     assert!(ds.get(0).is_none());

@@ -38,7 +38,7 @@ impl EvalError {
     /// Wraps `self` with the id of the clip it happened on.
     pub fn in_clip(self, clip: &str) -> EvalError {
         EvalError::Clip {
-            clip: clip.to_string(),
+            clip: clip.to_owned(),
             source: Box::new(self),
         }
     }

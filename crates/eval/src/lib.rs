@@ -23,13 +23,13 @@ pub mod report;
 pub mod score;
 pub mod sweep;
 
+pub use error::{EvalError, Result};
 pub use markdown::{markdown, summary};
 pub use protocol::evaluate_clip;
 pub use report::{
     mean_metrics, ClipMetrics, CrossFrameScore, DepthScore, FrameScore, HorizonScore, Method,
     MethodScore, Report, Timing,
 };
-pub use error::{EvalError, Result};
 pub use sweep::{SweepPoint, SweepSetting};
 
 use envision4d_data::{ClipDataset, HostClip};

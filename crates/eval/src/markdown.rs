@@ -10,7 +10,7 @@ pub const NA: &str = "n/a";
 
 /// A value with `digits` decimals, or [`NA`] when it is missing (no weights, no truth).
 pub fn opt(v: Option<f64>, digits: usize) -> String {
-    v.map_or(NA.to_string(), |v| format!("{v:.digits$}"))
+    v.map_or(NA.to_owned(), |v| format!("{v:.digits$}"))
 }
 
 /// The whole Markdown report.
@@ -41,7 +41,7 @@ pub fn markdown(r: &Report) -> String {
         r.crop.right,
         r.depth_alignment,
         if r.lpips.available {
-            "computed".to_string()
+            "computed".to_owned()
         } else {
             format!(
                 "not reported ({})",

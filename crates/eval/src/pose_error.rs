@@ -7,11 +7,11 @@
 //! (`P_j · P_0⁻¹`) because the predicted frame-0 pose is close to, not exactly, the identity.
 
 use crate::error::Result;
-use envision4d_model::SceneError;
 use burn::tensor::{Device, Tensor, TensorData};
 use envision4d_data::geom::Mat4;
-use glam::DVec3;
 use envision4d_losses::Extrinsic;
+use envision4d_model::SceneError;
+use glam::DVec3;
 
 /// Entries of one 4×4 matrix.
 const MAT4_LEN: usize = 16;

@@ -7,6 +7,7 @@
 use crate::baselines::{
     clip_images, constant_intrinsics, constant_velocity_poses, copy_last_images, copy_last_poses,
 };
+use crate::error::{EvalError, Result};
 use crate::pose_error::{
     extrinsics_tensor, host_extrinsics, pose_error, relative_to_first, to_extrinsic,
 };
@@ -14,7 +15,6 @@ use crate::report::{
     mean, mean_opt, ClipMetrics, CrossFrameScore, DepthScore, FrameScore, HorizonScore, Method,
     MethodScore, Timing,
 };
-use crate::error::{EvalError, Result};
 use crate::{EvalOptions, Extent};
 use burn::tensor::{Device, Tensor, TensorData};
 use envision4d_data::geom::Mat4;
@@ -29,8 +29,8 @@ use envision4d_model::scene::{predict_scene, render_targets, Scene};
 use envision4d_model::Envision4d;
 use std::time::Instant;
 
-pub use crate::score::PSNR_CAP_DB;
 use crate::score::reported_psnr;
+pub use crate::score::PSNR_CAP_DB;
 
 /// Evaluates one clip (`T_c + T_f` frames or more; extra frames are ignored).
 pub fn evaluate_clip(

@@ -79,7 +79,7 @@ pub fn plan(base: &SweepBase, backends: &[String]) -> Vec<SweepSetting> {
     }
     for t in TRANSMITTANCE_MIN_VALUES {
         out.push(with(Knob::TransmittanceMin, &|s| {
-            s.raster.transmittance_min = t
+            s.raster.transmittance_min = t;
         }));
     }
     out
@@ -130,14 +130,16 @@ impl SweepSetting {
 /// A model that predicts only its first `horizon` future frames (its first `horizon`
 /// learned future seeds; the rest of the network is shared).
 pub fn with_horizon(model: &Envision4d, horizon: usize) -> Result<Envision4d> {
-    model.with_horizon(horizon).ok_or_else(|| EvalError::Invalid {
-        key: "horizon",
-        value: horizon.to_string(),
-        reason: format!(
-            "must be in 1..={} (the model's future frames)",
-            model.future_frames()
-        ),
-    })
+    model
+        .with_horizon(horizon)
+        .ok_or_else(|| EvalError::Invalid {
+            key: "horizon",
+            value: horizon.to_string(),
+            reason: format!(
+                "must be in 1..={} (the model's future frames)",
+                model.future_frames()
+            ),
+        })
 }
 
 /// The sweep point of `setting` from its clips' metrics; `None` when no clip was scored.

@@ -20,7 +20,7 @@ impl HostImages {
     /// Wrap row-major `[N, C, H, W]` values. Errors on a length mismatch, an empty
     /// dimension or a non-finite value (named by `what`).
     pub fn new(what: &'static str, data: Vec<f64>, shape: [usize; 4]) -> Result<Self> {
-        if shape.iter().any(|&d| d == 0) || shape.iter().product::<usize>() != data.len() {
+        if shape.contains(&0) || shape.iter().product::<usize>() != data.len() {
             return Err(LossError::BadShape {
                 what,
                 expected: "non-empty [N, C, H, W] matching the data length",
@@ -82,7 +82,7 @@ pub struct HostDepths {
 impl HostDepths {
     /// Wrap row-major `[N, H, W]` values; errors like [`HostImages::new`].
     pub fn new(what: &'static str, data: Vec<f64>, shape: [usize; 3]) -> Result<Self> {
-        if shape.iter().any(|&d| d == 0) || shape.iter().product::<usize>() != data.len() {
+        if shape.contains(&0) || shape.iter().product::<usize>() != data.len() {
             return Err(LossError::BadShape {
                 what,
                 expected: "non-empty [N, H, W] matching the data length",

@@ -41,7 +41,7 @@ pub(crate) fn check_same<const D: usize>(
             right: db.to_vec(),
         });
     }
-    if da.iter().any(|&d| d == 0) {
+    if da.contains(&0) {
         return Err(LossError::BadShape {
             what,
             expected,

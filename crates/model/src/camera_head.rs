@@ -2,8 +2,8 @@
 //! transformer trunk (4 iterations). Prefix `camera_head.`.
 
 use crate::config::{CAMERA_ITERATIONS, CAMERA_TRUNK_DEPTH, MLP_RATIO, POSE_ENC_DIM};
-use crate::pose::{FOV, QUATERNION, TRANSLATION};
 use crate::layers::{Block, BlockSpec, Mlp, QkNorm, BLOCK_NORM_EPS};
+use crate::pose::{FOV, QUATERNION, TRANSLATION};
 use burn::module::{Module, Param};
 use burn::nn::{LayerNorm, LayerNormConfig, Linear, LinearConfig};
 use burn::tensor::activation::{relu, silu};
@@ -106,13 +106,8 @@ impl CameraHead {
     pub fn init_identity_pose(&mut self, fov_rad: f32, weight_scale: f64) {
         let fc2 = &mut self.pose_branch.fc2;
         let device = fc2.weight.device();
-        fc2.weight = Param::from_tensor(
-            fc2.weight
-                .val()
-                .detach()
-                .mul_scalar(weight_scale)
-                .detach(),
-        );
+        fc2.weight =
+            Param::from_tensor(fc2.weight.val().detach().mul_scalar(weight_scale).detach());
         let k = CAMERA_ITERATIONS as f32;
         let mut bias = [0.0f32; POSE_ENC_DIM];
         bias[QUATERNION.end - 1] = 1.0 / k;
@@ -126,7 +121,9 @@ impl CameraHead {
 /// Translation and quaternion linear, field of view ReLU.
 pub fn activate_pose(e: Tensor<3>) -> Tensor<3> {
     let [b, n, _] = e.dims();
-    let tq = e.clone().slice([0..b, 0..n, TRANSLATION.start..QUATERNION.end]);
+    let tq = e
+        .clone()
+        .slice([0..b, 0..n, TRANSLATION.start..QUATERNION.end]);
     let fov = relu(e.slice([0..b, 0..n, FOV]));
     Tensor::cat(vec![tq, fov], 2)
 }

@@ -40,7 +40,7 @@ fn is_new_module(key: &str) -> bool {
 pub fn detect_prefix(path: &Path) -> Result<String, LoadError> {
     let keys = checkpoint_keys(path)?;
     Ok(if keys.iter().any(|k| k.starts_with(RELEASE_PREFIX)) {
-        RELEASE_PREFIX.to_string()
+        RELEASE_PREFIX.to_owned()
     } else {
         String::new()
     })

@@ -218,7 +218,7 @@ impl ModelConfig {
     pub fn validate(&self) -> Result<(), ConfigError> {
         let err = |m: String| Err(ConfigError(m));
         let divides = |name: &str, dim: usize, heads: usize| -> Result<(), ConfigError> {
-            if heads == 0 || dim % heads != 0 {
+            if heads == 0 || !dim.is_multiple_of(heads) {
                 return Err(ConfigError(format!(
                     "{name}: {heads} heads do not divide width {dim}"
                 )));
@@ -236,7 +236,7 @@ impl ModelConfig {
             ));
         }
         // 2D RoPE splits each head in a y half and an x half, each rotated in pairs.
-        if (self.embed_dim / self.num_heads) % 4 != 0 {
+        if !(self.embed_dim / self.num_heads).is_multiple_of(4) {
             return err(format!(
                 "head dim {} (embed_dim / num_heads) must be a multiple of 4 for 2D RoPE",
                 self.embed_dim / self.num_heads
@@ -253,7 +253,7 @@ impl ModelConfig {
                 ));
             }
         }
-        if self.dino.img_size % self.patch_size != 0 {
+        if !self.dino.img_size.is_multiple_of(self.patch_size) {
             return err(format!(
                 "dino.img_size {} is not a multiple of patch_size {}",
                 self.dino.img_size, self.patch_size

@@ -56,7 +56,11 @@ pub fn quat_xyzw(r: [[f64; 3]; 3]) -> [f64; 4] {
             (r[1][0] - r[0][1]) / s,
         ]
     };
-    if q[3] < 0.0 { q.map(|v| -v) } else { q }
+    if q[3] < 0.0 {
+        q.map(|v| -v)
+    } else {
+        q
+    }
 }
 
 /// The encoding of one camera: `w2c` a row-major world-to-camera matrix (already relative
@@ -131,7 +135,9 @@ pub fn pose_encoding_to_extri_intri(
     .reshape([b, n, 4, 4]);
     let half_tan = |i: usize| c(i).mul_scalar(0.5).tan();
     let fy = half_tan(FOV.start).recip().mul_scalar(height as f64 / 2.0);
-    let fx = half_tan(FOV.start + 1).recip().mul_scalar(width as f64 / 2.0);
+    let fx = half_tan(FOV.start + 1)
+        .recip()
+        .mul_scalar(width as f64 / 2.0);
     let cx = zero.clone().add_scalar(width as f64 / 2.0);
     let cy = zero.clone().add_scalar(height as f64 / 2.0);
     let intr = Tensor::cat(

@@ -99,7 +99,7 @@ pub fn rename_key(key: &str) -> String {
             .map(|(f, t)| (regex::Regex::new(f).expect("valid rename regex"), *t))
             .collect()
     });
-    rules.iter().fold(key.to_string(), |k, (re, to)| {
+    rules.iter().fold(key.to_owned(), |k, (re, to)| {
         re.replace_all(&k, *to).into_owned()
     })
 }
@@ -309,7 +309,7 @@ pub fn header_metadata(
         .and_then(|m| m.as_object())
         .map(|m| {
             m.iter()
-                .filter_map(|(k, v)| v.as_str().map(|v| (k.clone(), v.to_string())))
+                .filter_map(|(k, v)| v.as_str().map(|v| (k.clone(), v.to_owned())))
                 .collect()
         })
         .unwrap_or_default())

@@ -131,12 +131,12 @@ impl RasterConfig {
                 self.transmittance_min
             ));
         }
-        if let Some(bg) = self.background {
-            if bg.iter().any(|c| !c.is_finite()) {
-                return Err(format!(
-                    "raster config: background must be finite, got {bg:?}"
-                ));
-            }
+        if let Some(bg) = self.background
+            && bg.iter().any(|c| !c.is_finite())
+        {
+            return Err(format!(
+                "raster config: background must be finite, got {bg:?}"
+            ));
         }
         Ok(())
     }

@@ -141,7 +141,7 @@ fn check_shape(
     }
     let expected = expected
         .iter()
-        .map(|e| e.map_or("_".to_string(), |v| v.to_string()))
+        .map(|e| e.map_or("_".to_owned(), |v| v.to_string()))
         .collect::<Vec<_>>()
         .join(", ");
     Err(RenderError::Shape {

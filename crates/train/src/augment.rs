@@ -6,9 +6,9 @@
 //! same for frames (0, 1), (0, 0) and (1, 0)). Playing some windows backwards or frozen
 //! gives the same frames the opposite motion or none, which only a comparison explains.
 
-use envision4d_data::HostClip;
 use crate::config::Augment;
 use envision4d_data::rng::Rng;
+use envision4d_data::HostClip;
 
 /// Stream tag of the augmentation draws, apart from the data-order shuffle's.
 const AUGMENT_STREAM: u64 = 0xA0C3_17E5_0000_0001;

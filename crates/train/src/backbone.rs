@@ -54,7 +54,8 @@ pub fn backbone_loss(
             Some(c) => c + term,
         });
     }
-    let camera = camera.ok_or_else(|| TrainError::Internal("camera head ran no iteration".into()))?;
+    let camera =
+        camera.ok_or_else(|| TrainError::Internal("camera head ran no iteration".into()))?;
     let (depth, _) = out
         .depth
         .ok_or_else(|| TrainError::Internal("depth head did not run".into()))?;

@@ -51,10 +51,10 @@ pub fn list(root: &Path) -> Result<Vec<(u64, PathBuf)>> {
     for e in std::fs::read_dir(root).map_err(read(root))? {
         let e = e.map_err(read(root))?;
         let name = e.file_name().to_string_lossy().to_string();
-        if let Some(step) = name.strip_prefix(DIR_PREFIX).and_then(|s| s.parse().ok()) {
-            if e.path().join(STATE_FILE).is_file() {
-                out.push((step, e.path()));
-            }
+        if let Some(step) = name.strip_prefix(DIR_PREFIX).and_then(|s| s.parse().ok())
+            && e.path().join(STATE_FILE).is_file()
+        {
+            out.push((step, e.path()));
         }
     }
     out.sort();
@@ -150,10 +150,10 @@ pub fn save(trainer: &Trainer, root: &Path, keep: usize, config_identity: &str) 
             seed: trainer.config.seed,
             param_ids: param_ids(&trainer.model),
             param_shapes: param_shapes(&trainer.model),
-            config: config_identity.to_string(),
+            config: config_identity.to_owned(),
         };
-        let json =
-            serde_json::to_string_pretty(&state).map_err(|e| TrainError::Internal(e.to_string()))?;
+        let json = serde_json::to_string_pretty(&state)
+            .map_err(|e| TrainError::Internal(e.to_string()))?;
         let sp = tmp.join(STATE_FILE);
         std::fs::write(&sp, json).map_err(written(&sp))
     };
@@ -218,8 +218,8 @@ pub fn restore(trainer: &mut Trainer, dir: &Path) -> Result<RunState> {
     trainer.model = restore_param_ids(model, &state.param_ids)?;
     trainer.refresh_split();
     let op = dir.join(OPTIMIZER_FILE);
-    let record = OptimizerRecord::load(&op)
-        .map_err(|e| TrainError::checkpoint(&op, format!("{e:?}")))?;
+    let record =
+        OptimizerRecord::load(&op).map_err(|e| TrainError::checkpoint(&op, format!("{e:?}")))?;
     trainer.load_optimizer_record(record);
     trainer.step = state.step;
     trainer.skipped = state.skipped;
@@ -239,7 +239,7 @@ fn flatten(prefix: &str, v: &toml::Value, out: &mut Vec<(String, String)>) {
                 flatten(&key, v, out);
             }
         }
-        other => out.push((prefix.to_string(), other.to_string())),
+        other => out.push((prefix.to_owned(), other.to_string())),
     }
 }
 

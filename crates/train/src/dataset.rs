@@ -4,8 +4,7 @@
 use crate::config::{DataConfig, DataLayout};
 use crate::error::{Result, TrainError};
 use envision4d_data::{
-    ClipDataset, ClipSpec, DatasetConfig, Fit, FitMode, Layout, Split, SplitRatios,
-    WaymoConfig,
+    ClipDataset, ClipSpec, DatasetConfig, Fit, FitMode, Layout, Split, SplitRatios, WaymoConfig,
 };
 use envision4d_model::ModelConfig;
 use std::path::Path;

@@ -67,9 +67,7 @@ pub fn resolve_resume(dir: &Path) -> Result<PathBuf> {
     checkpoint::list(&dir.join(CHECKPOINT_DIR))?
         .pop()
         .map(|(_, p)| p)
-        .ok_or_else(|| {
-            TrainError::checkpoint(dir, "--resume: no checkpoint in it")
-        })
+        .ok_or_else(|| TrainError::checkpoint(dir, "--resume: no checkpoint in it"))
 }
 
 /// Training windows decoded ahead of the step that needs them (a batch and a half: the
@@ -110,7 +108,7 @@ fn training_windows(
     train: Vec<usize>,
     samples: std::ops::Range<u64>,
 ) -> Prefetch<Result<HostClip>> {
-    let (seed, augment) = (cfg.seed, cfg.data.augment.clone());
+    let (seed, augment) = (cfg.seed, cfg.data.augment);
     let depth = (cfg.optim.batch_size as f64 * PREFETCH_BATCHES).ceil() as usize;
     let mut order_cache = None;
     Prefetch::new(samples, depth, move |k| {
@@ -123,7 +121,10 @@ fn training_windows(
 }
 
 /// The next `batch_size` windows from the prefetcher.
-fn next_clips(windows: &mut Prefetch<Result<HostClip>>, batch_size: usize) -> Result<Vec<HostClip>> {
+fn next_clips(
+    windows: &mut Prefetch<Result<HostClip>>,
+    batch_size: usize,
+) -> Result<Vec<HostClip>> {
     (0..batch_size)
         .map(|_| {
             windows
@@ -202,7 +203,7 @@ pub fn run(
     }
 
     let devices = &opts.devices;
-    if devices.len() > 1 && cfg.optim.batch_size % devices.len() != 0 {
+    if devices.len() > 1 && !cfg.optim.batch_size.is_multiple_of(devices.len()) {
         return Err(TrainError::invalid(
             "optim.batch_size",
             cfg.optim.batch_size,
@@ -241,7 +242,13 @@ pub fn run(
         let step = trainer.step;
         let clips = next_clips(&mut windows, cfg.optim.batch_size)?;
         let t0 = Instant::now();
-        let report = step_on(&mut trainer, &clips, (depth_frames, with_gt), device, devices)?;
+        let report = step_on(
+            &mut trainer,
+            &clips,
+            (depth_frames, with_gt),
+            device,
+            devices,
+        )?;
         let rate = (trainer.step - first) as f64 / t_start.elapsed().as_secs_f64().max(1e-9);
         obs.step(&report, rate);
         if !report.outcome.applied() || (step + 1) % cfg.run.log_every == 0 {
@@ -270,7 +277,14 @@ pub fn run(
         // Validation after the checkpoint, and never fatal: a bad validation clip must not
         // cost the steps since the last checkpoint.
         if cfg.run.val_every > 0 && done % cfg.run.val_every == 0 && !val_clips.is_empty() {
-            match validate(&trainer.model, cfg.stage, &val_clips, tc, done, &trainer.raster) {
+            match validate(
+                &trainer.model,
+                cfg.stage,
+                &val_clips,
+                tc,
+                done,
+                &trainer.raster,
+            ) {
                 Ok(v) => {
                     log.validation(&v)?;
                     obs.validation(&v);

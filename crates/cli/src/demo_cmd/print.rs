@@ -5,9 +5,9 @@
 use crate::backend_choice::BackendChoice;
 use crate::eval_cmd::shared::backend_name;
 use envision4d_data::synth::SynthConfig;
-use envision4d_model::ModelConfig;
 use envision4d_eval::markdown::opt;
 use envision4d_eval::{ClipMetrics, Method, MethodScore, Report};
+use envision4d_model::ModelConfig;
 use std::fmt::Write;
 use std::path::{Path, PathBuf};
 
@@ -65,8 +65,8 @@ pub fn scores(report: &Report) -> String {
     );
     let _ = writeln!(
         s,
-        "  {:<10} {:>9}  {:>6}  {:>9}  {:>9}  {:>8}  {}",
-        "method", "PSNR (dB)", "SSIM", "rot (deg)", "trans (m)", "time (s)", "of which (s)"
+        "  {:<10} {:>9}  {:>6}  {:>9}  {:>9}  {:>8}  of which (s)",
+        "method", "PSNR (dB)", "SSIM", "rot (deg)", "trans (m)", "time (s)"
     );
     for m in &clip.methods {
         let _ = writeln!(

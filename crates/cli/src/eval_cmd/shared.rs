@@ -9,14 +9,14 @@ use anyhow::{Context, Result};
 use burn::tensor::Device;
 use clap::ValueEnum;
 use envision4d_data::{atomic, ClipDataset};
+use envision4d_eval::report::{CropInfo, LpipsInfo, SCHEMA_VERSION};
+use envision4d_eval::{
+    evaluate_dataset, markdown, mean_metrics, protocol::alignment_name, EvalOptions, EvalRun,
+    Report, SweepPoint,
+};
 use envision4d_losses::{LpipsNet, LpipsStatus};
 use envision4d_model::checkpoint::{load_checkpoint, CheckpointKind};
 use envision4d_model::{Envision4d, ModelConfig};
-use envision4d_eval::report::{CropInfo, LpipsInfo, SCHEMA_VERSION};
-use envision4d_eval::{
-    evaluate_dataset, markdown, mean_metrics, protocol::alignment_name, EvalOptions,
-    EvalRun, Report, SweepPoint,
-};
 use std::path::{Path, PathBuf};
 
 /// File names written into the output folder.
@@ -29,7 +29,7 @@ const PARETO_PNG: &str = "pareto.png";
 /// The name `--backend` spells (`cpu`, `wgpu`), as the report records it.
 pub fn backend_name(b: BackendChoice) -> String {
     b.to_possible_value()
-        .map_or_else(|| format!("{b:?}"), |v| v.get_name().to_string())
+        .map_or_else(|| format!("{b:?}"), |v| v.get_name().to_owned())
 }
 
 /// Builds the model of `cfg` and loads every parameter of our checkpoint (a missing or

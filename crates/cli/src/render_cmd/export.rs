@@ -52,7 +52,7 @@ fn push<const D: usize>(out: &mut Vec<Named>, key: &str, t: Tensor<D>) {
         .convert::<f32>()
         .try_into_vec::<f32>()
         .expect("f32 data");
-    out.push((key.to_string(), shape, v));
+    out.push((key.to_owned(), shape, v));
 }
 
 /// Writes the tensors atomically (temporary file + rename).
@@ -71,7 +71,7 @@ fn write_safetensors(path: &Path, tensors: &[Named]) -> Result<()> {
             ))
         })
         .collect::<Result<Vec<_>, safetensors::SafeTensorError>>()?;
-    let meta = HashMap::from([(PRODUCER_KEY.to_string(), PRODUCER.to_string())]);
+    let meta = HashMap::from([(PRODUCER_KEY.to_owned(), PRODUCER.to_owned())]);
     let encoded = safetensors::tensor::serialize(views, Some(meta))
         .with_context(|| format!("encoding {}", path.display()))?;
     envision4d_data::atomic::write_bytes(path, &encoded)

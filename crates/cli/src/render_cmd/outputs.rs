@@ -136,14 +136,15 @@ impl Plan {
                 Output::Ply,
             ]);
         }
-        if let Some(out) = &args.out {
-            if out.exists() && !out.is_dir() {
-                return Err(InputError(format!(
-                    "--out {}: exists and is not a folder",
-                    out.display()
-                ))
-                .into());
-            }
+        if let Some(out) = &args.out
+            && out.exists()
+            && !out.is_dir()
+        {
+            return Err(InputError(format!(
+                "--out {}: exists and is not a folder",
+                out.display()
+            ))
+            .into());
         }
         Ok(Plan {
             out: args.out.clone(),

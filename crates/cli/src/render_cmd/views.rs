@@ -10,9 +10,9 @@ use crate::image_out::{write_gray, write_rgb};
 use anyhow::{Context, Result};
 use burn::tensor::Device;
 use envision4d_model::adapter::{AdaptedGaussians, Exclusion};
+use envision4d_model::scene::gaussians_for;
 use envision4d_splat::ply::{write_ply, PlyGaussians, RenderParams};
 use envision4d_splat::{render, Cameras, Gaussians, RasterConfig};
-use envision4d_model::scene::gaussians_for;
 
 const VIEWS_DIR: &str = "views";
 const DEPTH_DIR: &str = "depth";

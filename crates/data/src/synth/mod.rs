@@ -88,9 +88,9 @@ pub fn render_clip(
         .filter(|o| o.track_id > 0)
         .map(|o| Track {
             id: o.track_id,
-            kind: o.kind.name().to_string(),
+            kind: o.kind.name().to_owned(),
             size: o.size,
-            motion: o.label.to_string(),
+            motion: o.label.to_owned(),
             states: Vec::with_capacity(cfg.frames),
         })
         .collect();

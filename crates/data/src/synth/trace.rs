@@ -253,7 +253,9 @@ fn pixel(scene: &Scene, camera: &Camera, u: usize, v: usize, ss: usize) -> Pixel
         }
     }
     let n = (ss * ss) as f32;
-    rgb.iter_mut().for_each(|c| *c /= n);
+    for c in &mut rgb {
+        *c /= n;
+    }
     // Truth from the pixel-centre ray.
     let ray = camera.ray(u as f64 + 0.5, v as f64 + 0.5);
     let (depth, flow, instance) = match scene.nearest(&ray, f64::INFINITY) {

@@ -231,7 +231,7 @@ impl WeightFile {
     fn get(&mut self, key: &str) -> Result<HostTensor> {
         self.get_opt(key)?.ok_or_else(|| LossError::MissingKey {
             path: self.path.clone(),
-            key: key.to_string(),
+            key: key.to_owned(),
         })
     }
 

@@ -133,12 +133,12 @@ pub fn write_safetensors(path: &Path, tensors: &[(String, Vec<usize>, Vec<f32>)]
 pub fn export_layout(w: &LpipsWeights, shift: [f32; 3]) -> Vec<(String, Vec<usize>, Vec<f32>)> {
     let mut out = vec![
         (
-            "scaling_layer.shift".to_string(),
+            "scaling_layer.shift".to_owned(),
             vec![1, 3, 1, 1],
             shift.to_vec(),
         ),
         (
-            "scaling_layer.scale".to_string(),
+            "scaling_layer.scale".to_owned(),
             vec![1, 3, 1, 1],
             envision4d_losses::lpips::SCALING_SCALE.to_vec(),
         ),

@@ -31,7 +31,7 @@ fn official_keys(fx: &Fixture) -> std::collections::BTreeSet<String> {
     header_names(&fx.path)
         .unwrap()
         .into_iter()
-        .filter_map(|k| k.strip_prefix("weights/").map(str::to_string))
+        .filter_map(|k| k.strip_prefix("weights/").map(str::to_owned))
         .collect()
 }
 

@@ -8,6 +8,9 @@
 //!   culled. They are small integers (< 2^24) kept in f32 so that the host reads back one
 //!   float buffer; a Gaussian is visible iff its rect is non-empty.
 
+// The tile-grid size is written `(n + T - 1) / T`: `div_ceil` is not a CubeCL operation.
+#![allow(clippy::manual_div_ceil)]
+
 use super::geometry::geometry;
 use super::math::*;
 use cubecl::prelude::*;
@@ -23,6 +26,8 @@ const EXTENT_CAP: f32 = crate::config::EXTENT_CAP as f32;
 const RADIUS_MAX: f32 = crate::config::RADIUS_MAX as f32;
 /// Tile side in pixels, from [`crate::config::TILE_SIZE`].
 const TILE: f32 = crate::config::TILE_SIZE as f32;
+/// The same tile side as an integer, for the tile-grid size.
+const TILE_PX: u32 = crate::config::TILE_SIZE;
 
 #[cube(launch)]
 #[allow(clippy::too_many_arguments)]
@@ -69,8 +74,8 @@ pub fn project_forward(
     let on_screen = !(mx + rx <= 0.0f32 || mx - rx >= w || my + ry <= 0.0f32 || my - ry >= h);
 
     // Conservative tile AABB floor((mu - r)/16) .. ceil((mu + r)/16), clamped to the grid.
-    let tiles_x = f32::cast_from((width + 15u32) / 16u32);
-    let tiles_y = f32::cast_from((height + 15u32) / 16u32);
+    let tiles_x = f32::cast_from((width + TILE_PX - 1u32) / TILE_PX);
+    let tiles_y = f32::cast_from((height + TILE_PX - 1u32) / TILE_PX);
     let x0 = f32::floor((mx - rx) / TILE).max(0.0f32).min(tiles_x);
     let y0 = f32::floor((my - ry) / TILE).max(0.0f32).min(tiles_y);
     let x1 = f32::ceil((mx + rx) / TILE).max(0.0f32).min(tiles_x);

@@ -33,7 +33,7 @@ pub(crate) enum ScalarType {
 
 impl ScalarType {
     fn parse(name: &str) -> Option<Self> {
-        use ScalarType::*;
+        use ScalarType::{F32, F64, I16, I32, I8, U16, U32, U8};
         Some(match name {
             "char" | "int8" => I8,
             "uchar" | "uint8" => U8,
@@ -49,7 +49,7 @@ impl ScalarType {
 
     /// Size in bytes in the binary encodings.
     pub(crate) fn size(self) -> usize {
-        use ScalarType::*;
+        use ScalarType::{F32, F64, I16, I32, I8, U16, U32, U8};
         match self {
             I8 | U8 => 1,
             I16 | U16 => 2,
@@ -147,12 +147,12 @@ pub(crate) fn parse_header(bytes: &[u8]) -> Result<Header, PlyError> {
         let malformed = |reason: &str| PlyError::MalformedHeader {
             line_no,
             line: quote(raw),
-            reason: reason.to_string(),
+            reason: reason.to_owned(),
         };
         let line = std::str::from_utf8(raw).map_err(|_| malformed("not valid UTF-8 text"))?;
         let tokens: Vec<&str> = line.split_ascii_whitespace().collect();
         match tokens.as_slice() {
-            [] | ["comment", ..] | ["obj_info", ..] => {}
+            [] | ["comment" | "obj_info", ..] => {}
             ["format", rest @ ..] => {
                 if format.is_some() {
                     return Err(malformed("second format line"));

@@ -137,7 +137,7 @@ impl FieldMap {
                 Ok(v)
             } else {
                 Err(PlyError::NonFinite {
-                    property: props.get(i).map_or("?", Property::name).to_string(),
+                    property: props.get(i).map_or("?", Property::name).to_owned(),
                     vertex,
                     value,
                 })
@@ -296,13 +296,12 @@ fn read_binary(
     }
     let v = &elements[vi];
     // Check the declared count against the bytes present before allocating.
-    if let Some(stride) = v.fixed_stride() {
-        if v.count
+    if let Some(stride) = v.fixed_stride()
+        && v.count
             .checked_mul(stride)
             .is_none_or(|b| b > cur.remaining())
-        {
-            return Err(truncated_fixed(v, stride, cur.remaining()));
-        }
+    {
+        return Err(truncated_fixed(v, stride, cur.remaining()));
     }
     let mut g = with_capacity(v.count.min(cur.remaining() / v.min_stride().max(1)));
     let mut slots = vec![0.0f64; v.properties.len()];

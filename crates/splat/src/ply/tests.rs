@@ -141,7 +141,7 @@ fn extra_properties_and_face_element_skipped_binary() {
     vprops.extend(names.iter().map(|n| ("float", n.as_str())));
     vprops.push(("short", "tail"));
     let face = vec![
-        "list uchar int vertex_indices".to_string(),
+        "list uchar int vertex_indices".to_owned(),
         "float area".into(),
     ];
     let mut bytes = header(
@@ -152,8 +152,8 @@ fn extra_properties_and_face_element_skipped_binary() {
             ("edge", 5, face),
         ],
     );
-    bytes.extend([3u8].iter().chain(&[0u8; 12]).chain(&[0u8; 4])); // 3 indices + area
-    bytes.extend([0u8].iter().chain(&[0u8; 4])); // empty list + area
+    bytes.extend(std::iter::once(&3u8).chain(&[0u8; 12]).chain(&[0u8; 4])); // 3 indices + area
+    bytes.extend(std::iter::once(&0u8).chain(&[0u8; 4])); // empty list + area
     for i in 0..3 {
         bytes.extend(binary_record(&g, i, &vprops, false));
     }
@@ -283,8 +283,7 @@ fn non_finite_error_names_property_and_vertex() {
         .to_string();
     assert!(err.contains("rot_2") && err.contains("vertex 0"), "{err}");
     let names = property_names(0);
-    let props: Vec<(&str, &str)> = [("double", "x")]
-        .into_iter()
+    let props: Vec<(&str, &str)> = std::iter::once(("double", "x"))
         .chain(names[1..].iter().map(|n| ("float", n.as_str())))
         .filter(|(_, n)| !n.starts_with('n'))
         .collect();
@@ -402,7 +401,7 @@ fn f_rest_ordering_with_ten_plus_coefficients() {
 #[test]
 fn f_rest_gap_rejected() {
     let mut props = float_props(0);
-    props.extend(["float f_rest_0".to_string(), "float f_rest_2".into()]);
+    props.extend(["float f_rest_0".to_owned(), "float f_rest_2".into()]);
     let err = parse_ply(&header("ascii", &[("vertex", 0, props)])).unwrap_err();
     assert!(
         matches!(err, PlyError::NonContiguousFRest { missing: 1, .. }),

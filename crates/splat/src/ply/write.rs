@@ -93,10 +93,10 @@ pub(crate) fn encode(g: &PlyGaussians, format: Format) -> Vec<u8> {
                 out.push(b'\n');
             }
             Format::BinaryLittleEndian => {
-                vertex_values(g, i).for_each(|v| out.extend_from_slice(&v.to_le_bytes()))
+                vertex_values(g, i).for_each(|v| out.extend_from_slice(&v.to_le_bytes()));
             }
             Format::BinaryBigEndian => {
-                vertex_values(g, i).for_each(|v| out.extend_from_slice(&v.to_be_bytes()))
+                vertex_values(g, i).for_each(|v| out.extend_from_slice(&v.to_be_bytes()));
             }
         }
     }

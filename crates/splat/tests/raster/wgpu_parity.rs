@@ -10,7 +10,7 @@ use burn::tensor::{DType, Device, Tensor, TensorData};
 use envision4d_splat::testkit::{
     intrinsics, look_at, random_scene, wgpu_test_device, HostScene, SceneSpec, SplitMix64,
 };
-use envision4d_splat::{render, Cameras, GradAccumulation, Gaussians, RasterConfig};
+use envision4d_splat::{render, Cameras, Gaussians, GradAccumulation, RasterConfig};
 use std::panic::{catch_unwind, AssertUnwindSafe};
 
 /// Image tolerance (absolute for colour and alpha, relative for the accumulated depth).

@@ -4,15 +4,11 @@
 use crate::common::{synth_clip, tiny_config};
 use burn::tensor::Device;
 use envision4d_data::geom::{Mat4, Vec3};
-use envision4d_losses::{psnr, LpipsStatus};
 use envision4d_eval::baselines::clip_images;
-use envision4d_eval::pose_error::{
-    extrapolate_constant_velocity, pose_error, relative_to_first,
-};
+use envision4d_eval::pose_error::{extrapolate_constant_velocity, pose_error, relative_to_first};
 use envision4d_eval::sweep::{mark_pareto, summarize, with_horizon, Knob, SweepSetting};
-use envision4d_eval::{
-    evaluate_clip, mean_metrics, ClipMetrics, EvalOptions, Extent, Method,
-};
+use envision4d_eval::{evaluate_clip, mean_metrics, ClipMetrics, EvalOptions, Extent, Method};
+use envision4d_losses::{psnr, LpipsStatus};
 use envision4d_train::step::build_model;
 
 fn options() -> EvalOptions {

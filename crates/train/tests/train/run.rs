@@ -167,7 +167,8 @@ fn backbone_stage_then_teacher() {
     )
     .unwrap();
     let batch =
-        envision4d_train::batch::Batch::from_clips(&[hc.clone()], 4, true, &device).unwrap();
+        envision4d_train::batch::Batch::from_clips(std::slice::from_ref(&hc), 4, true, &device)
+            .unwrap();
     let mut totals = vec![];
     for _ in 0..6 {
         let r = t.train_step(&batch).unwrap();
@@ -235,8 +236,7 @@ fn data_parallel_gradients_equal_single_device_gradients() {
     c.optim.batch_size = 2;
     c.progressive.warmup_iterations = 0;
     let clips = [crate::common::synth_clip(3), crate::common::synth_clip(9)];
-    let sky =
-        |c: &envision4d_data::HostClip| c.depths[0].iter().filter(|d| **d == 0.0).count();
+    let sky = |c: &envision4d_data::HostClip| c.depths[0].iter().filter(|d| **d == 0.0).count();
     assert_ne!(
         sky(&clips[0]),
         sky(&clips[1]),

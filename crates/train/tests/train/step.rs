@@ -1,8 +1,8 @@
 use crate::common::{batch, flat_params, tiny_config};
 use burn::tensor::{Device, Tensor};
 use envision4d_model::adapter::{Exclusion, OpacityMapping};
-use envision4d_model::scene::render_targets;
 use envision4d_model::model::Heads;
+use envision4d_model::scene::render_targets;
 use envision4d_train::config::{FreezeGroup, Teacher};
 use envision4d_train::freeze::grad_abs_sum;
 use envision4d_train::{StepOutcome, Trainer};
