@@ -163,7 +163,6 @@ pub fn gaussians_for(a: &AdaptedGaussians, b: usize, j: usize, exclusion: Exclus
 /// Renders target frames `targets` of batch element `b` (each from the Gaussians at that
 /// time under `exclusion`) with cameras `extrinsics [B, N, 4, 4]` / `intrinsics
 /// [B, N, 3, 3]`; returns `[F, 3, H, W]`.
-#[allow(clippy::too_many_arguments)]
 pub fn render_targets(
     adapted: &AdaptedGaussians,
     extrinsics: &Tensor<4>,
