@@ -55,10 +55,16 @@ pub struct ParamSplit {
 
 impl ParamSplit {
     pub fn new(model: &Envision4d, groups: &[FreezeGroup]) -> Self {
+        // Walk the groups in the config's order, each once. Not a `HashSet`'s order: the walk
+        // initialises lazy parameters, so its order decides which random draws each one
+        // gets, and a per-process hash order made one seed give different initial weights.
         let mut frozen = Ids::default();
-        let unique: HashSet<FreezeGroup> = groups.iter().copied().collect();
-        for g in unique {
-            group_ids(model, g, &mut frozen);
+        let mut seen = Vec::with_capacity(groups.len());
+        for &g in groups {
+            if !seen.contains(&g) {
+                seen.push(g);
+                group_ids(model, g, &mut frozen);
+            }
         }
         let mut all = Ids::default();
         collect(model, &mut all);

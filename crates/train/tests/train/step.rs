@@ -192,3 +192,24 @@ fn warmup_is_static_motion_head_untouched() {
     let prog = grad_abs_sum(&t.model.motion_head, &grads).unwrap_or(0.0);
     assert!(prog > 0.0, "motion head untrained after warm-up");
 }
+
+/// Guards seeded initialisation: the freeze groups were walked in `HashSet` order, and the
+/// walk initialises lazy parameters, so two runs with one seed and several frozen groups
+/// started from different weights (and so different loss curves).
+#[test]
+fn same_seed_same_initial_weights_with_frozen_groups() {
+    let mut cfg = tiny_config();
+    cfg.freeze = vec![
+        FreezeGroup::PatchEmbed,
+        FreezeGroup::FrameBlocks,
+        FreezeGroup::GlobalBlocks,
+        FreezeGroup::Tokens,
+        FreezeGroup::CameraHead,
+    ];
+    let device = Device::flex().autodiff();
+    let first = flat_params(&Trainer::new(cfg.clone(), &device).unwrap().model);
+    for attempt in 0..3 {
+        let again = flat_params(&Trainer::new(cfg.clone(), &device).unwrap().model);
+        assert!(first == again, "attempt {attempt}: the initial weights differ");
+    }
+}
