@@ -196,13 +196,18 @@ pub fn run(args: DemoArgs) -> Result<()> {
         stride: 1,
         augment: Default::default(),
     };
-    let dataset = envision4d_train::dataset::open_dataset(&data, cfg, &clip_root)?;
+    // The clip was written a moment ago: failing to open, score or read it back is our bug,
+    // not the user's input, so these errors are flattened (exit code 1).
+    let ours = |e: &dyn std::fmt::Display| anyhow::anyhow!("internal: the generated clip: {e}");
+    let dataset =
+        envision4d_train::dataset::open_dataset(&data, cfg, &clip_root).map_err(|e| ours(&e))?;
     // Window 0 is the clip's first T_c + T_f frames (the only window the demo writes).
     let indices = [0];
     let device = args.backend.device();
     let opts = EvalOptions::new(cfg.context_frames, shared::lpips_status(None, &device)?);
-    shared::warm_up(&model, &dataset, &indices, &opts, args.backend)?;
-    let run = evaluate_dataset(&model, &dataset, &indices, &opts, |_| bar.inc(1))?;
+    shared::warm_up(&model, &dataset, &indices, &opts, args.backend).map_err(|e| ours(&e))?;
+    let run = evaluate_dataset(&model, &dataset, &indices, &opts, |_| bar.inc(1))
+        .map_err(|e| ours(&e))?;
     if run.clips.is_empty() {
         // The clip was written a moment ago: failing to read it back is our bug, not input.
         anyhow::bail!(
@@ -220,7 +225,8 @@ pub fn run(args: DemoArgs) -> Result<()> {
     let report = shared::build_report(from, cfg, &model, &opts, run, None);
     let metrics = shared::write_outputs(&args.out, &report)?;
 
-    let host = HostClip::from_clip(&*dataset.load(indices[0])?)?;
+    let clip = dataset.load(indices[0]).map_err(|e| ours(&e))?;
+    let host = HostClip::from_clip(&clip).map_err(|e| ours(&e))?;
     let request = Request {
         plan: &setup.plan,
         out: Some(OutDir::create(&args.out.join(RENDER_DIR))?),

@@ -312,7 +312,8 @@ fn run_sweep(
             .context("sweep model loaded")?
             .1;
         let m = if s.horizon < base.future_frames {
-            with_horizon(full, s.horizon)?
+            // The sweep planned this horizon itself: out of range is a bug, not input.
+            with_horizon(full, s.horizon).map_err(|e| anyhow::anyhow!("internal: {e}"))?
         } else {
             full.clone()
         };

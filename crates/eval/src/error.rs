@@ -48,7 +48,8 @@ impl EvalError {
     pub fn is_input(&self) -> bool {
         match self {
             EvalError::Clip { source, .. } => source.is_input(),
-            EvalError::Unscorable(_) | EvalError::Invalid { .. } | EvalError::Data(_) => true,
+            EvalError::Unscorable(_) | EvalError::Invalid { .. } => true,
+            EvalError::Data(e) => e.is_input(),
             EvalError::Metric(e) => e.is_input(),
             EvalError::Scene(_) | EvalError::Device(_) => false,
         }

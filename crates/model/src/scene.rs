@@ -4,7 +4,7 @@
 //! 1. [`predict_scene`]: the network on the context frames (every head), its cameras rebuilt
 //!    from a FoV-clamped pose encoding (so an untrained head still renders), and the
 //!    Gaussians lifted to world space with their motion to every timestamp.
-//! 2. [`Scene::gaussians_at`]: the Gaussians as seen at time `j`, either self-exclusive
+//! 2. [`gaussians_for`]: the Gaussians as seen at time `j`, either self-exclusive
 //!    (every frame from the *other* frames' Gaussians, paper §3.4) or, for the geometric
 //!    warm-up, including the target's own.
 //! 3. [`Scene::render`] / [`render_targets`]: those Gaussians through the predicted cameras
@@ -117,11 +117,6 @@ impl Scene {
         let mut s = self.clone();
         s.adapted.motions = s.adapted.motions.zeros_like();
         s
-    }
-
-    /// The Gaussians of batch element `b` at timestamp `j` as the rasterizer takes them.
-    pub fn gaussians_at(&self, b: usize, j: usize, exclusion: Exclusion) -> Gaussians {
-        gaussians_for(&self.adapted, b, j, exclusion)
     }
 
     /// Renders frames `targets` of batch element `b` through the scene's own (predicted)

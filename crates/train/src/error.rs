@@ -116,9 +116,9 @@ impl TrainError {
             TrainError::Read { .. }
             | TrainError::Parse { .. }
             | TrainError::Invalid { .. }
-            | TrainError::Data { .. }
             | TrainError::Unusable(_)
             | TrainError::Checkpoint { .. } => true,
+            TrainError::Data { source, .. } => source.is_input(),
             TrainError::Loss(e) => e.is_input(),
             TrainError::Eval(e) => e.is_input(),
             TrainError::Write { .. }

@@ -180,7 +180,10 @@ pub fn run(
             None
         }
     };
-    std::fs::create_dir_all(&out).map_err(crate::error::written(&out))?;
+    // The folder the config names: failing to make it (a file in the way, no permission) is
+    // the user's to fix, like `eval --out`.
+    std::fs::create_dir_all(&out)
+        .map_err(|e| TrainError::invalid("run.out_dir", out.display(), e.to_string()))?;
     envision4d_data::atomic::write_bytes(&config_path, cfg.to_toml().as_bytes())
         .map_err(|e| TrainError::write(&config_path, e))?;
 

@@ -210,6 +210,9 @@ fn same_seed_same_initial_weights_with_frozen_groups() {
     let first = flat_params(&Trainer::new(cfg.clone(), &device).unwrap().model);
     for attempt in 0..3 {
         let again = flat_params(&Trainer::new(cfg.clone(), &device).unwrap().model);
-        assert!(first == again, "attempt {attempt}: the initial weights differ");
+        assert!(
+            first == again,
+            "attempt {attempt}: the initial weights differ"
+        );
     }
 }
