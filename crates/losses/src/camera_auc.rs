@@ -172,9 +172,12 @@ fn relative(a: &DMat4, b: &DMat4) -> (DMat3, DVec3) {
 }
 
 fn rotation_error_deg(gt: &DMat3, pred: &DMat3) -> f64 {
-    // tr(gtᵀ·pred) = Σ gt ⊙ pred, column by column.
-    let trace =
-        gt.x_axis.dot(pred.x_axis) + gt.y_axis.dot(pred.y_axis) + gt.z_axis.dot(pred.z_axis);
+    // tr(gtᵀ·pred) = Σ gt ⊙ pred, summed row by row (VGGT's order).
+    let (g, p) = (
+        gt.transpose().to_cols_array(),
+        pred.transpose().to_cols_array(),
+    );
+    let trace: f64 = g.iter().zip(&p).map(|(a, b)| a * b).sum();
     let dot_sq = ((1.0 + trace) / 4.0).clamp(0.0, 1.0);
     let loss = (1.0 - dot_sq).max(ANGLE_EPS);
     (1.0 - 2.0 * loss).clamp(-1.0, 1.0).acos().to_degrees()
