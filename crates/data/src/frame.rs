@@ -34,14 +34,7 @@ impl Image {
     }
     /// The same values as CHW (what a tensor (3, H, W) expects).
     pub fn to_chw(&self) -> Vec<f32> {
-        let plane = self.width * self.height;
-        let mut out = vec![0.0; plane * 3];
-        for (p, px) in self.data.chunks_exact(3).enumerate() {
-            for c in 0..3 {
-                out[c * plane + p] = px[c];
-            }
-        }
-        out
+        crate::host_clip::hwc_to_chw(&self.data, self.height, self.width)
     }
 }
 

@@ -41,7 +41,7 @@ impl HostClip {
         let frames = clip
             .frames
             .iter()
-            .map(|f| hwc_to_chw(&f.data, h, w))
+            .map(crate::frame::Image::to_chw)
             .collect();
         let cameras = clip
             .gt

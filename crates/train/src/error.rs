@@ -65,12 +65,6 @@ impl From<SceneError> for TrainError {
     }
 }
 
-impl From<envision4d_splat::RenderError> for TrainError {
-    fn from(e: envision4d_splat::RenderError) -> Self {
-        SceneError::Render(e).into()
-    }
-}
-
 impl TrainError {
     pub fn invalid(
         key: &'static str,
