@@ -1,12 +1,24 @@
-//! Forward-pass benchmark (not a test): the model with random weights on the CPU backend.
+//! Forward (and forward + backward) benchmark of the network (not a test), on the CPU backend.
 //!
-//! `cargo bench -p envision4d-model --bench forward -- [--preset paper|tiny] [--heads all|none]
-//!  [--chunk N]` — prints time and peak resident memory. The fixtures README measured the
-//! PyTorch reference on this machine: paper size, 2 frames at 350x518: ~100-130 s, 9.4 GB;
-//! tiny widths: 2.2 s at 350x518.
+//! ```text
+//! cargo bench -p envision4d-model --bench forward -- [--preset paper|tiny]
+//!     [--mode forward|train] [--heads all|none|depth|gaussians|motion] [--image HxW]
+//!     [--future N] [--images FILE.safetensors] [--repeats N] [--chunk N] [--profile]
+//! ```
+//!
+//! The weights are drawn (and every lazy parameter materialised) before any clock starts,
+//! then one untimed pass warms the allocator and the thread pool. Each timed pass prints a
+//! machine-readable line, `forward_warm_s=<s> peak_rss_gib=<g>` (or `train_step_s=` in
+//! `--mode train`: forward + backward of the sum of every output's mean, all parameters
+//! trainable). `--images` reads the `images` tensor `[B, T_c, 3, H, W]` that
+//! `scripts/bench_pytorch_forward.py --write-images` wrote, so the official PyTorch code and
+//! this bench see the same pixels (`scripts/bench_vs_pytorch.sh` runs both in alternation).
+//! `--profile` adds one pass per head set (poses only, + depth, + Gaussians, + motion), which
+//! splits the time by module.
 
-use burn::tensor::{Device, Distribution, Tensor};
-use envision4d_model::model::Heads;
+use burn::module::{Module, ModuleVisitor, Param};
+use burn::tensor::{Device, Distribution, Tensor, TensorData};
+use envision4d_model::model::{Heads, Predictions};
 use envision4d_model::{Envision4d, ModelConfig};
 use std::time::Instant;
 
@@ -26,60 +38,157 @@ fn arg(args: &[String], name: &str) -> Option<String> {
         .and_then(|i| args.get(i + 1).cloned())
 }
 
+/// Touches every parameter so that lazy initialisation (drawing random weights) happens
+/// here and not inside the first timed pass.
+struct Materialise;
+impl ModuleVisitor for Materialise {
+    fn visit_float<const D: usize>(&mut self, param: &Param<Tensor<D>>) {
+        let _ = param.val();
+    }
+}
+
+fn read_images(path: &str, device: &Device) -> Tensor<5> {
+    let bytes = std::fs::read(path).unwrap_or_else(|e| panic!("--images {path}: {e}"));
+    let st = safetensors::SafeTensors::deserialize(&bytes)
+        .unwrap_or_else(|e| panic!("--images {path}: {e}"));
+    let view = st
+        .tensor("images")
+        .unwrap_or_else(|e| panic!("--images {path}: no `images` tensor ({e})"));
+    assert_eq!(view.dtype(), safetensors::Dtype::F32, "{path}: images must be F32");
+    let shape: [usize; 5] = view
+        .shape()
+        .try_into()
+        .unwrap_or_else(|_| panic!("{path}: images must be [B, T_c, 3, H, W]"));
+    let data: Vec<f32> = view
+        .data()
+        .chunks_exact(4)
+        .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+        .collect();
+    Tensor::from_data(TensorData::new(data, shape), device)
+}
+
+/// Sum of the means of every output a pass produced: what `--mode train` backpropagates
+/// (the PyTorch side backpropagates the same sum).
+fn outputs_mean_sum(p: &Predictions) -> Tensor<1> {
+    let mut total = p.backbone.pose_enc().mean();
+    if let Some(d) = &p.depth {
+        total = total + d.clone().mean();
+    }
+    if let Some(c) = &p.depth_conf {
+        total = total + c.clone().mean();
+    }
+    if let Some(g) = &p.gaussians {
+        total = total + g.clone().mean();
+    }
+    if let Some(m) = &p.motion_enc {
+        total = total + m.clone().mean();
+    }
+    total
+}
+
+/// One pass; returns its wall time in seconds (reading a scalar back forces the compute).
+fn pass(model: &Envision4d, images: &Tensor<5>, heads: Heads, train: bool) -> f64 {
+    let t = Instant::now();
+    let out = model.forward(images.clone(), heads);
+    let loss = outputs_mean_sum(&out);
+    if train {
+        let grads = loss.backward();
+        drop(grads);
+    } else {
+        let _ = loss.into_data();
+    }
+    t.elapsed().as_secs_f64()
+}
+
 fn main() {
     let args: Vec<String> = std::env::args().collect();
     let preset = arg(&args, "--preset").unwrap_or_else(|| "paper".into());
     let mut cfg = ModelConfig::preset(&preset).expect("preset");
-    // The tiny widths are also timed at the paper's image size, as the README did.
+    // Both presets are timed at the paper's image size unless told otherwise.
     cfg.image_size = [350, 518];
-    cfg.validate().expect("valid config");
-    let heads = match arg(&args, "--heads").as_deref() {
-        Some("none") => Heads::NONE,
-        _ => Heads::ALL,
+    if let Some(s) = arg(&args, "--image") {
+        let (h, w) = s.split_once('x').expect("--image HxW");
+        cfg.image_size = [h.parse().expect("--image H"), w.parse().expect("--image W")];
+    }
+    if let Some(f) = arg(&args, "--future") {
+        cfg.future_frames = f.parse().expect("--future N");
+    }
+    let train = match arg(&args, "--mode").as_deref() {
+        None | Some("forward") => false,
+        Some("train") => true,
+        Some(m) => panic!("--mode {m}: use forward or train"),
     };
-    let device = Device::flex();
+    let heads = match arg(&args, "--heads").as_deref() {
+        None | Some("all") => Heads::ALL,
+        Some("none") => Heads::NONE,
+        Some(h) => panic!("--heads {h}: use all or none"),
+    };
+    let repeats: usize = arg(&args, "--repeats").map_or(3, |r| r.parse().expect("--repeats N"));
+    let flex = Device::flex();
+    let device = if train { flex.autodiff() } else { flex };
+    let images = match arg(&args, "--images") {
+        Some(p) => read_images(&p, &device),
+        None => {
+            let [h, w] = cfg.image_size;
+            Tensor::<5>::random(
+                [1, cfg.context_frames, 3, h, w],
+                Distribution::Uniform(0.0, 1.0),
+                &device,
+            )
+        }
+    };
+    let [b, tc, _, h, w] = images.dims();
+    cfg.context_frames = tc;
+    cfg.image_size = [h, w];
+    cfg.validate().expect("valid config");
+
     let t = Instant::now();
     let mut model = Envision4d::new(&cfg, &device);
     if let Some(c) = arg(&args, "--chunk") {
         model.dpt_frame_chunk = c.parse().expect("--chunk N");
     }
-    let params = burn::module::Module::num_params(&model);
-    let t_init = t.elapsed();
-    let [h, w] = cfg.image_size;
-    let images = Tensor::<5>::random(
-        [1, cfg.context_frames, 3, h, w],
-        Distribution::Uniform(0.0, 1.0),
-        &device,
-    );
-    let t = Instant::now();
-    let out = model.forward(images, heads);
-    // Force every output to be computed before stopping the clock.
-    let _ = out.backbone.pose_enc().into_data();
-    if let Some(m) = out.motion_enc {
-        let _ = m.into_data();
-    }
-    if let Some(g) = out.gaussians {
-        let _ = g.into_data();
-    }
-    if let Some(d) = out.depth {
-        let _ = d.into_data();
-    }
-    let t_fwd = t.elapsed();
+    model.visit(&mut Materialise);
+    let t_init = t.elapsed().as_secs_f64();
     println!(
-        "| preset | params | image | heads | DPT frame chunk | init s | forward s | peak RSS GiB |"
+        "# envision4d {preset}, {:.3} B params, images [{b}, {tc}, 3, {h}, {w}], {} future, \
+         {} mode, weights drawn in {t_init:.1} s",
+        model.num_params() as f64 / 1e9,
+        cfg.future_frames,
+        if train { "train" } else { "forward" },
     );
-    println!("|---|---|---|---|---|---|---|---|");
-    println!(
-        "| {preset} | {:.3} B | {h}x{w} | {} | {} | {:.1} | {:.1} | {:.1} |",
-        params as f64 / 1e9,
-        if heads == Heads::ALL {
-            "all"
-        } else {
-            "none (poses only)"
-        },
-        model.dpt_frame_chunk,
-        t_init.as_secs_f64(),
-        t_fwd.as_secs_f64(),
-        peak_rss_gib()
-    );
+    let label = if train {
+        "train_step_s"
+    } else {
+        "forward_warm_s"
+    };
+    pass(&model, &images, heads, train); // untimed warm-up
+    for _ in 0..repeats {
+        let s = pass(&model, &images, heads, train);
+        println!("{label}={s:.4} peak_rss_gib={:.2}", peak_rss_gib());
+    }
+    if args.iter().any(|a| a == "--profile") {
+        let only = |depth, gaussians, motion| Heads {
+            depth,
+            gaussians,
+            motion,
+        };
+        let sets = [
+            ("poses only (aggregator, future pose, camera head)", Heads::NONE),
+            ("+ depth head", only(true, false, false)),
+            ("+ Gaussian head", only(false, true, false)),
+            ("+ motion head", only(false, false, true)),
+        ];
+        let mut base = 0.0;
+        for (i, (name, set)) in sets.iter().enumerate() {
+            let best = (0..repeats.max(1))
+                .map(|_| pass(&model, &images, *set, train))
+                .fold(f64::INFINITY, f64::min);
+            if i == 0 {
+                base = best;
+                println!("profile {name}: {best:.3} s");
+            } else {
+                println!("profile {name}: {:.3} s", best - base);
+            }
+        }
+    }
 }

@@ -42,20 +42,33 @@ pub fn dpt_pos_embed(
     let omega: Vec<f64> = (0..quarter)
         .map(|k| DPT_POS_EMBED_BASE.powf(-(k as f64) / quarter as f64))
         .collect();
+    // The embedding is separable: every channel is a function of either x or y alone, so
+    // the sines and cosines are taken once per (frequency, column) and (frequency, row)
+    // rather than once per pixel (at 350x518 that is 1.4e4 instead of 5.8e6 per call).
+    // Each value is the same f64 expression as the per-pixel form, so the result is unchanged.
+    let table = |coords: &[f64]| -> [Vec<f32>; 2] {
+        let (mut sin, mut cos) = (Vec::new(), Vec::new());
+        for om in &omega {
+            for t in coords {
+                sin.push(((t * om).sin() as f32) * DPT_POS_EMBED_RATIO as f32);
+                cos.push(((t * om).cos() as f32) * DPT_POS_EMBED_RATIO as f32);
+            }
+        }
+        [sin, cos]
+    };
+    let [su, cu] = table(&u);
+    let [sv, cv] = table(&v);
     let mut out = vec![0f32; c * h * w];
-    for y in 0..h {
-        for x in 0..w {
-            for (k, om) in omega.iter().enumerate() {
-                let vals = [
-                    (u[x] * om).sin(),
-                    (u[x] * om).cos(),
-                    (v[y] * om).sin(),
-                    (v[y] * om).cos(),
-                ];
-                for (block, val) in vals.iter().enumerate() {
-                    out[((block * quarter + k) * h + y) * w + x] =
-                        (*val as f32) * DPT_POS_EMBED_RATIO as f32;
-                }
+    // Channel blocks [sin(u) | cos(u) | sin(v) | cos(v)], each `quarter` frequencies deep.
+    // Channels past 4·quarter (when c is not a multiple of 4) stay zero, as in the reference.
+    for (plane, dst) in out.chunks_exact_mut(h * w).take(4 * quarter).enumerate() {
+        let (block, k) = (plane / quarter, plane % quarter);
+        for (y, row) in dst.chunks_exact_mut(w).enumerate() {
+            match block {
+                0 => row.copy_from_slice(&su[k * w..(k + 1) * w]),
+                1 => row.copy_from_slice(&cu[k * w..(k + 1) * w]),
+                2 => row.fill(sv[k * h + y]),
+                _ => row.fill(cv[k * h + y]),
             }
         }
     }

@@ -1,6 +1,7 @@
 //! Multi-head self-attention as in VGGT/DINOv2: fused qkv projection, optional per-head
 //! LayerNorm of q and k ("qk-norm"), optional 2D RoPE, softmax attention, output projection.
 
+use super::cpu_attention;
 use super::rope::RopeTables;
 use burn::module::Module;
 use burn::nn::{LayerNorm, LayerNormConfig, Linear, LinearConfig};
@@ -69,10 +70,16 @@ impl Attention {
             q = r.apply(q);
             k = r.apply(k);
         }
-        // softmax(q kᵀ / sqrt(d)) v. Burn's op picks a tiled (flash) kernel on the CPU backend
-        // when the score matrix is large (the global blocks) and decomposes into ordinary,
+        // softmax(q kᵀ / sqrt(d)) v. Inference on the CPU backend runs our kernel (vectorised
+        // softmax, see `cpu_attention`); elsewhere Burn's op, which decomposes into ordinary,
         // differentiable ops under autodiff.
-        let out = attention(q, k, v, None, None, AttentionModuleOptions::default())
+        let device = q.device();
+        let out = if device == Device::flex() {
+            cpu_attention::attention(q, k, v, &device)
+        } else {
+            attention(q, k, v, None, None, AttentionModuleOptions::default())
+        };
+        let out = out
             .swap_dims(1, 2)
             .reshape([b, n, c]);
         self.proj.forward(out)

@@ -2,6 +2,7 @@
 
 pub mod attention;
 pub mod block;
+pub mod cpu_attention;
 pub mod rope;
 
 pub use attention::{Attention, QkNorm};
