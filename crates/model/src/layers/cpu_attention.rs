@@ -246,9 +246,16 @@ pub fn exp(x: f32) -> f32 {
     const LN2_LO: f32 = -2.121_944_4e-4;
     // Adding and subtracting 1.5 · 2^23 rounds to the nearest integer (|t| < 2^22).
     const ROUND: f32 = 12_582_912.0;
-    let xc = if x > 88.0 { 88.0 } else { x };
-    let t = xc * LOG2E;
-    let n = (t + ROUND) - ROUND;
+    // Clamped so that n stays in [-127, 127]; NaN passes through (both comparisons fail).
+    let xc = if x > 88.0 {
+        88.0
+    } else if x < -88.0 {
+        -88.0
+    } else {
+        x
+    };
+    let shifted = xc * LOG2E + ROUND;
+    let n = shifted - ROUND;
     let r = xc - n * LN2_HI - n * LN2_LO;
     let r2 = r * r;
     let mut p = 1.987_569_2e-4_f32;
@@ -258,8 +265,10 @@ pub fn exp(x: f32) -> f32 {
     p = p * r + 1.666_666_5e-1;
     p = p * r + 5.000_000_1e-1;
     let e_r = p * r2 + r + 1.0;
+    // The integer n sits in the low mantissa bits of `shifted`; reading it there (instead of a
+    // saturating float-to-int cast, which does not vectorise) keeps the loop in SIMD.
+    let ni = shifted.to_bits() as i32 - ROUND.to_bits() as i32;
     // 2^n with n in [-126, 127]: the biased exponent n + 127 in [1, 254].
-    let ni = n as i32;
     let two_n = f32::from_bits(((ni.clamp(-126, 127) + 127) as u32) << 23);
     if x < EXP_MIN_ARG { 0.0 } else { e_r * two_n }
 }
