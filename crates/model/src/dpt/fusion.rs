@@ -1,5 +1,6 @@
 //! DPT fusion blocks (`scratch.refinenet*`) and their residual conv units.
 
+use crate::layers::cpu_conv::conv2d;
 use crate::resample::bilinear_align_corners;
 use burn::module::Module;
 use burn::nn::conv::{Conv2d, Conv2dConfig};
@@ -36,7 +37,7 @@ impl ResidualConvUnit {
 
     pub fn forward(&self, x: Tensor<4>) -> Tensor<4> {
         let x = relu(x);
-        self.conv2.forward(relu(self.conv1.forward(x.clone()))) + x
+        conv2d(&self.conv2, relu(conv2d(&self.conv1, x.clone()))) + x
     }
 }
 

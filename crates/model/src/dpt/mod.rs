@@ -10,6 +10,7 @@ pub mod fusion;
 pub mod pos_embed;
 
 use crate::config::{DptConfig, MotionModel};
+use crate::layers::cpu_conv::conv2d;
 use crate::resample::bilinear_align_corners;
 use burn::module::Module;
 use burn::nn::conv::{Conv2d, Conv2dConfig, ConvTranspose2d, ConvTranspose2dConfig};
@@ -209,10 +210,10 @@ impl DptHead {
             levels.push(x);
         }
         let sc = &self.scratch;
-        let l1 = sc.layer1_rn.forward(levels[0].clone());
-        let l2 = sc.layer2_rn.forward(levels[1].clone());
-        let l3 = sc.layer3_rn.forward(levels[2].clone());
-        let l4 = sc.layer4_rn.forward(levels[3].clone());
+        let l1 = conv2d(&sc.layer1_rn, levels[0].clone());
+        let l2 = conv2d(&sc.layer2_rn, levels[1].clone());
+        let l3 = conv2d(&sc.layer3_rn, levels[2].clone());
+        let l4 = conv2d(&sc.layer4_rn, levels[3].clone());
         let hw = |t: &Tensor<4>| (t.dims()[2], t.dims()[3]);
         let (h3, w3) = hw(&l3);
         let (h2, w2) = hw(&l2);
@@ -221,18 +222,18 @@ impl DptHead {
         let o = sc.refinenet3.forward(o, Some(l3), FusionSize::To(h2, w2));
         let o = sc.refinenet2.forward(o, Some(l2), FusionSize::To(h1, w1));
         let o = sc.refinenet1.forward(o, Some(l1), FusionSize::Double);
-        let o = sc.output_conv1.forward(o);
+        let o = conv2d(&sc.output_conv1, o);
         let (oh, ow) = (rows * self.patch_size, cols * self.patch_size);
         let o = bilinear_align_corners(o, oh, ow);
         let c = o.dims()[1];
         let mut o = o + dpt_pos_embed(c, oh, ow, image_hw[0], image_hw[1], &device);
         if let (Some(merger), Some(img)) = (&self.input_merger, images) {
-            o = o + relu(merger.forward(img.reshape([b * s, 3, oh, ow])));
+            o = o + relu(conv2d(merger, img.reshape([b * s, 3, oh, ow])));
         }
         let o = sc
             .output_conv2
             .conv2
-            .forward(relu(sc.output_conv2.conv1.forward(o)));
+            .forward(relu(conv2d(&sc.output_conv2.conv1, o)));
         let out = o.dims()[1];
         o.permute([0, 2, 3, 1]).reshape([b, s, oh, ow, out])
     }

@@ -79,9 +79,7 @@ impl Attention {
         } else {
             attention(q, k, v, None, None, AttentionModuleOptions::default())
         };
-        let out = out
-            .swap_dims(1, 2)
-            .reshape([b, n, c]);
+        let out = out.swap_dims(1, 2).reshape([b, n, c]);
         self.proj.forward(out)
     }
 }

@@ -93,7 +93,16 @@ pub fn attention_host(q: &[f32], k: &[f32], v: &[f32], dims: [usize; 5], isa: Is
                 .for_each_init(Vec::new, |scores, (blk, out_blk)| {
                     let rows = out_blk.len() / dv;
                     let q0 = blk * QUERY_BLOCK;
-                    block(&qh[q0 * d..(q0 + rows) * d], kh, vh, out_blk, [rows, m, d, dv], scale, isa, scores);
+                    block(
+                        &qh[q0 * d..(q0 + rows) * d],
+                        kh,
+                        vh,
+                        out_blk,
+                        [rows, m, d, dv],
+                        scale,
+                        isa,
+                        scores,
+                    );
                 });
         });
     out
@@ -207,7 +216,11 @@ fn softmax_row_lanes(row: &mut [f32], scale: f32) -> f32 {
     let mut chunks = row.chunks_exact(LANES);
     for c in &mut chunks {
         for i in 0..LANES {
-            lane_max[i] = if c[i] > lane_max[i] { c[i] } else { lane_max[i] };
+            lane_max[i] = if c[i] > lane_max[i] {
+                c[i]
+            } else {
+                lane_max[i]
+            };
         }
     }
     let mut max = f32::NEG_INFINITY;
@@ -215,7 +228,11 @@ fn softmax_row_lanes(row: &mut [f32], scale: f32) -> f32 {
         max = if x > max { x } else { max };
     }
     // All scores -inf (masked): exp(-inf - 0) = 0 everywhere rather than NaN.
-    let shift = if max == f32::NEG_INFINITY { 0.0 } else { max * scale };
+    let shift = if max == f32::NEG_INFINITY {
+        0.0
+    } else {
+        max * scale
+    };
     let mut lane_sum = [0f32; LANES];
     let mut chunks = row.chunks_exact_mut(LANES);
     for c in &mut chunks {
@@ -270,7 +287,11 @@ pub fn exp(x: f32) -> f32 {
     let ni = shifted.to_bits() as i32 - ROUND.to_bits() as i32;
     // 2^n with n in [-126, 127]: the biased exponent n + 127 in [1, 254].
     let two_n = f32::from_bits(((ni.clamp(-126, 127) + 127) as u32) << 23);
-    if x < EXP_MIN_ARG { 0.0 } else { e_r * two_n }
+    if x < EXP_MIN_ARG {
+        0.0
+    } else {
+        e_r * two_n
+    }
 }
 
 #[cfg(test)]
@@ -329,8 +350,10 @@ mod tests {
                 let e: Vec<f64> = s.iter().map(|x| (x - max).exp()).collect();
                 let z: f64 = e.iter().sum();
                 for c in 0..dv {
-                    out[(h * n + i) * dv + c] =
-                        (0..m).map(|j| e[j] * v[(h * m + j) * dv + c] as f64).sum::<f64>() / z;
+                    out[(h * n + i) * dv + c] = (0..m)
+                        .map(|j| e[j] * v[(h * m + j) * dv + c] as f64)
+                        .sum::<f64>()
+                        / z;
                 }
             }
         }
@@ -341,7 +364,9 @@ mod tests {
         let mut s = seed;
         (0..len)
             .map(|_| {
-                s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+                s = s
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
                 ((s >> 40) as f32 / (1u64 << 24) as f32 - 0.5) * 2.0 * amplitude
             })
             .collect()
@@ -382,7 +407,10 @@ mod tests {
         use burn::tensor::ops::AttentionModuleOptions;
         let device = Device::flex();
         let t = |seed, shape: [usize; 4]| {
-            Tensor::<4>::from_data(TensorData::new(values(shape.iter().product(), seed, 2.0), shape), &device)
+            Tensor::<4>::from_data(
+                TensorData::new(values(shape.iter().product(), seed, 2.0), shape),
+                &device,
+            )
         };
         // [B, N, H, d] permuted to [B, H, N, d], as the attention module hands them over.
         let q = t(4, [2, 50, 3, 16]).swap_dims(1, 2);
