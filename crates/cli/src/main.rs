@@ -63,6 +63,7 @@ fn default_burn_device() {
 }
 
 fn main() -> ExitCode {
+    envision4d_model::alloc::keep_freed_memory();
     default_burn_device();
     let cli = Cli::parse();
     let result = match cli.command {

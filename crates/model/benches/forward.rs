@@ -54,7 +54,11 @@ fn read_images(path: &str, device: &Device) -> Tensor<5> {
     let view = st
         .tensor("images")
         .unwrap_or_else(|e| panic!("--images {path}: no `images` tensor ({e})"));
-    assert_eq!(view.dtype(), safetensors::Dtype::F32, "{path}: images must be F32");
+    assert_eq!(
+        view.dtype(),
+        safetensors::Dtype::F32,
+        "{path}: images must be F32"
+    );
     let shape: [usize; 5] = view
         .shape()
         .try_into()
@@ -101,6 +105,7 @@ fn pass(model: &Envision4d, images: &Tensor<5>, heads: Heads, train: bool) -> f6
 }
 
 fn main() {
+    let tuned = envision4d_model::alloc::keep_freed_memory();
     let args: Vec<String> = std::env::args().collect();
     let preset = arg(&args, "--preset").unwrap_or_else(|| "paper".into());
     let mut cfg = ModelConfig::preset(&preset).expect("preset");
@@ -151,7 +156,7 @@ fn main() {
     let t_init = t.elapsed().as_secs_f64();
     println!(
         "# envision4d {preset}, {:.3} B params, images [{b}, {tc}, 3, {h}, {w}], {} future, \
-         {} mode, weights drawn in {t_init:.1} s",
+         {} mode, weights drawn in {t_init:.1} s, allocator kept freed memory: {tuned}",
         model.num_params() as f64 / 1e9,
         cfg.future_frames,
         if train { "train" } else { "forward" },
@@ -173,7 +178,10 @@ fn main() {
             motion,
         };
         let sets = [
-            ("poses only (aggregator, future pose, camera head)", Heads::NONE),
+            (
+                "poses only (aggregator, future pose, camera head)",
+                Heads::NONE,
+            ),
             ("+ depth head", only(true, false, false)),
             ("+ Gaussian head", only(false, true, false)),
             ("+ motion head", only(false, false, true)),

@@ -14,6 +14,7 @@ pub use config::{ConfigError, ModelConfig};
 pub use model::Envision4d;
 pub use scene::{predict_scene, Scene, SceneError};
 pub mod adapter;
+pub mod alloc;
 pub mod aggregator;
 pub mod camera_head;
 pub mod checkpoint;
