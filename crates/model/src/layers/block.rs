@@ -2,10 +2,10 @@
 //! `x += γ1 ⊙ Attn(LN1(x))`, `x += γ2 ⊙ MLP(LN2(x))`.
 
 use super::attention::{Attention, QkNorm};
+use super::cpu_gelu::gelu;
 use super::rope::RopeTables;
 use burn::module::{Module, Param};
 use burn::nn::{LayerNorm, LayerNormConfig, Linear, LinearConfig};
-use burn::tensor::activation::gelu;
 use burn::tensor::{Device, Tensor};
 
 /// LayerNorm epsilon of aggregator, temporal, camera and future-pose blocks.

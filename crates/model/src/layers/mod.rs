@@ -4,6 +4,7 @@ pub mod attention;
 pub mod block;
 pub mod cpu_attention;
 pub mod cpu_conv;
+pub mod cpu_gelu;
 pub mod rope;
 
 pub use attention::{Attention, QkNorm};
