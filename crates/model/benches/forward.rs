@@ -156,10 +156,12 @@ fn main() {
     let t_init = t.elapsed().as_secs_f64();
     println!(
         "# envision4d {preset}, {:.3} B params, images [{b}, {tc}, 3, {h}, {w}], {} future, \
-         {} mode, weights drawn in {t_init:.1} s, allocator kept freed memory: {tuned}",
+         {} mode, weights drawn in {t_init:.1} s, allocator kept freed memory: {tuned}, \
+         CPU kernels: {:?}",
         model.num_params() as f64 / 1e9,
         cfg.future_frames,
         if train { "train" } else { "forward" },
+        envision4d_model::layers::cpu_attention::Isa::detect(),
     );
     let label = if train {
         "train_step_s"
