@@ -122,7 +122,7 @@ pub fn bilinear_align_corners(x: Tensor<4>, out_h: usize, out_w: usize) -> Tenso
         return x;
     }
     let device = x.device();
-    if device == Device::flex() {
+    if crate::layers::cpu_inference(&device) {
         let host = x
             .into_data()
             .convert::<f32>()

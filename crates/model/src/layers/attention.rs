@@ -74,7 +74,7 @@ impl Attention {
         // softmax, see `cpu_attention`); elsewhere Burn's op, which decomposes into ordinary,
         // differentiable ops under autodiff.
         let device = q.device();
-        let out = if device == Device::flex() {
+        let out = if super::cpu_inference(&device) {
             cpu_attention::attention(q, k, v, &device)
         } else {
             attention(q, k, v, None, None, AttentionModuleOptions::default())

@@ -18,7 +18,7 @@ const CHUNK: usize = 1 << 14;
 /// `gelu(x)`, through the vectorised kernel on the CPU backend without autodiff.
 pub fn gelu<const D: usize>(x: Tensor<D>) -> Tensor<D> {
     let device = x.device();
-    if device != Device::flex() {
+    if !super::cpu_inference(&device) {
         return activation::gelu(x);
     }
     let dims = x.dims();
