@@ -24,13 +24,29 @@ pub struct Envision4d {
     pub temporal_layers: [usize; 4],
     pub scale_min: f64,
     pub scale_max: f64,
-    /// Frames per DPT-head pass (memory bound; results do not depend on it).
+    /// Frames per DPT-head pass (memory bound; results do not depend on it); 0 = as many as
+    /// fit [`DPT_CHUNK_PIXELS`].
     pub dpt_frame_chunk: usize,
 }
 
-/// Default frames per DPT-head pass: one full-resolution frame at a time keeps the paper-size
-/// model's CPU inference well inside 24 GiB.
-pub const DEFAULT_DPT_FRAME_CHUNK: usize = 1;
+/// Default frames per DPT-head pass: automatic (see [`DPT_CHUNK_PIXELS`]).
+pub const DEFAULT_DPT_FRAME_CHUNK: usize = 0;
+
+/// Pixels per automatic DPT-head pass: one 350x518 frame. At the paper's image size that is
+/// one frame at a time, which keeps the paper-size model's CPU inference well inside 24 GiB;
+/// at the 56x84 of the CPU training configs it is every map at once, so the 14 motion maps
+/// of a step are one pass of each op instead of 14 (forward + backward 0.73 -> 0.58 s for the
+/// tiny model, docs/PERFORMANCE.md).
+pub const DPT_CHUNK_PIXELS: usize = 350 * 518;
+
+/// The frames per DPT-head pass that `chunk` (0 = automatic) means at `image_hw`.
+pub fn dpt_chunk_frames(chunk: usize, image_hw: [usize; 2]) -> usize {
+    if chunk > 0 {
+        chunk
+    } else {
+        (DPT_CHUNK_PIXELS / (image_hw[0] * image_hw[1]).max(1)).max(1)
+    }
+}
 
 /// Which heads a forward pass runs ("leave out what a command does not need").
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

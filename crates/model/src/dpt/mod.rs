@@ -144,7 +144,8 @@ impl DptHead {
         }
     }
 
-    /// Like [`DptHead::forward_raw`], `frame_chunk` frames at a time: every frame is processed
+    /// Like [`DptHead::forward_raw`], `frame_chunk` frames at a time (0 = automatic,
+    /// [`crate::model::dpt_chunk_frames`]): every frame is processed
     /// independently by the head, so chunking is exact and bounds the full-resolution
     /// activations (a 3x3 conv at 350x518x256 needs ~1.7 GB of im2col per frame on CPU).
     pub fn forward_chunked(
@@ -156,7 +157,7 @@ impl DptHead {
         frame_chunk: usize,
     ) -> Tensor<5> {
         let [b, s, p, d] = taps[0].dims();
-        let chunk = frame_chunk.max(1);
+        let chunk = crate::model::dpt_chunk_frames(frame_chunk, image_hw);
         if s <= chunk {
             return self.forward_raw(taps, patch_start, image_hw, images);
         }

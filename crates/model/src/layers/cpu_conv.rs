@@ -15,7 +15,7 @@
 
 use burn::nn::conv::Conv2d;
 use burn::nn::PaddingConfig2d;
-use burn::tensor::{Device, Tensor, TensorData};
+use burn::tensor::{Tensor, TensorData};
 use rayon::prelude::*;
 
 /// Output columns per job (rows of `Wp` each, at least one row): ~2k columns keep a
@@ -170,6 +170,7 @@ pub fn conv_same_host(
 mod tests {
     use super::*;
     use burn::nn::conv::Conv2dConfig;
+    use burn::tensor::Device;
 
     fn values(len: usize, seed: u64) -> Vec<f32> {
         let mut s = seed;

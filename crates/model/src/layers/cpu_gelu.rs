@@ -9,7 +9,7 @@
 
 use super::cpu_attention::{exp, Isa};
 use burn::tensor::activation;
-use burn::tensor::{Device, Tensor, TensorData};
+use burn::tensor::{Tensor, TensorData};
 use rayon::prelude::*;
 
 /// Elements per parallel job.
@@ -86,6 +86,7 @@ pub fn gelu_scalar(x: f32) -> f32 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use burn::tensor::Device;
 
     /// Guards the vectorised GELU against Burn's (libm erf) over [-12, 12], including the
     /// far tails (where 1 + erf cancels) and signed zero, on every instruction set here: the
