@@ -123,11 +123,7 @@ pub fn bilinear_align_corners(x: Tensor<4>, out_h: usize, out_w: usize) -> Tenso
     }
     let device = x.device();
     if crate::layers::cpu_inference(&device) {
-        let host = x
-            .into_data()
-            .convert::<f32>()
-            .try_into_vec::<f32>()
-            .expect("f32 after convert");
+        let host = crate::layers::host_f32(x);
         let out = bilinear_align_corners_host(&host, [n * c, h, w], [out_h, out_w]);
         return Tensor::from_data(TensorData::new(out, [n, c, out_h, out_w]), &device);
     }

@@ -12,6 +12,7 @@
 //! the exact two-pass form with no online rescaling. Autodiff devices keep Burn's op, whose
 //! backward is defined; see [`super::attention::Attention::forward`].
 
+use super::{gemm_f32, Strided};
 use burn::tensor::{Device, Tensor, TensorData};
 use rayon::prelude::*;
 
@@ -53,13 +54,7 @@ pub fn attention(q: Tensor<4>, k: Tensor<4>, v: Tensor<4>, device: &Device) -> T
     let [b, h, n, d] = q.dims();
     let m = k.dims()[2];
     let dv = v.dims()[3];
-    let host = |t: Tensor<4>| -> Vec<f32> {
-        t.into_data()
-            .convert::<f32>()
-            .try_into_vec::<f32>()
-            .expect("f32 after convert")
-    };
-    let (q, k, v) = (host(q), host(k), host(v));
+    let (q, k, v) = (super::host_f32(q), super::host_f32(k), super::host_f32(v));
     let out = attention_host(&q, &k, &v, [b * h, n, m, d, dv], Isa::detect());
     Tensor::from_data(TensorData::new(out, [b, h, n, dv]), device)
 }
@@ -122,29 +117,24 @@ fn block(
     scores.clear();
     scores.resize(rows * m, 0.0);
     // scores[rows, m] = q[rows, d] · k[m, d]ᵀ
-    // SAFETY: every pointer addresses a live slice of exactly the strided extent gemm reads
-    // or writes (rows x d, m x d, rows x m), and `scores` does not alias the inputs.
+    // SAFETY: the operands address exactly q (rows x d), k (m x d, read transposed) and
+    // `scores` (rows x m), all live; `scores` is this job's own buffer.
     unsafe {
-        gemm::gemm(
-            rows,
-            m,
-            d,
+        gemm_f32(
+            [rows, m, d],
             scores.as_mut_ptr(),
-            1,
             m as isize,
             false,
-            q.as_ptr(),
-            1,
-            d as isize,
-            k.as_ptr(),
-            d as isize,
-            1,
-            0.0,
-            1.0,
-            false,
-            false,
-            false,
-            gemm::Parallelism::None,
+            Strided {
+                ptr: q.as_ptr(),
+                row_stride: d as isize,
+                col_stride: 1,
+            },
+            Strided {
+                ptr: k.as_ptr(),
+                row_stride: 1,
+                col_stride: d as isize,
+            },
         );
     }
     let mut inv_sums = vec![0f32; rows];
@@ -156,30 +146,27 @@ fn block(
     // out[rows, dv] = p[rows, m] · v[m, dv]
     // SAFETY: as above; `out` is this job's own rows x dv slice.
     unsafe {
-        gemm::gemm(
-            rows,
-            dv,
-            m,
+        gemm_f32(
+            [rows, dv, m],
             out.as_mut_ptr(),
-            1,
             dv as isize,
             false,
-            scores.as_ptr(),
-            1,
-            m as isize,
-            v.as_ptr(),
-            1,
-            dv as isize,
-            0.0,
-            1.0,
-            false,
-            false,
-            false,
-            gemm::Parallelism::None,
+            Strided {
+                ptr: scores.as_ptr(),
+                row_stride: m as isize,
+                col_stride: 1,
+            },
+            Strided {
+                ptr: v.as_ptr(),
+                row_stride: dv as isize,
+                col_stride: 1,
+            },
         );
     }
     for (row, inv) in out.chunks_exact_mut(dv).zip(&inv_sums) {
-        row.iter_mut().for_each(|o| *o *= inv);
+        for o in row.iter_mut() {
+            *o *= inv;
+        }
     }
 }
 
@@ -263,14 +250,8 @@ pub fn exp(x: f32) -> f32 {
     const LN2_LO: f32 = -2.121_944_4e-4;
     // Adding and subtracting 1.5 · 2^23 rounds to the nearest integer (|t| < 2^22).
     const ROUND: f32 = 12_582_912.0;
-    // Clamped so that n stays in [-127, 127]; NaN passes through (both comparisons fail).
-    let xc = if x > 88.0 {
-        88.0
-    } else if x < -88.0 {
-        -88.0
-    } else {
-        x
-    };
+    // Clamped so that n stays in [-127, 127]; NaN passes through (`clamp` keeps NaN).
+    let xc = x.clamp(-88.0, 88.0);
     let shifted = xc * LOG2E + ROUND;
     let n = shifted - ROUND;
     let r = xc - n * LN2_HI - n * LN2_LO;
@@ -280,7 +261,7 @@ pub fn exp(x: f32) -> f32 {
     p = p * r + 8.333_452e-3;
     p = p * r + 4.166_579_6e-2;
     p = p * r + 1.666_666_5e-1;
-    p = p * r + 5.000_000_1e-1;
+    p = p * r + 0.5; // Cephes' 5.0000001201e-1, which is 0.5 in f32
     let e_r = p * r2 + r + 1.0;
     // The integer n sits in the low mantissa bits of `shifted`; reading it there (instead of a
     // saturating float-to-int cast, which does not vectorise) keeps the loop in SIMD.
@@ -296,6 +277,7 @@ pub fn exp(x: f32) -> f32 {
 
 #[cfg(test)]
 mod tests {
+    use super::super::test_util::{max_abs_diff, values};
     use super::*;
 
     fn isas() -> Vec<Isa> {
@@ -346,7 +328,7 @@ mod tests {
                             * scale
                     })
                     .collect();
-                let max = s.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
+                let max = s.iter().copied().fold(f64::NEG_INFINITY, f64::max);
                 let e: Vec<f64> = s.iter().map(|x| (x - max).exp()).collect();
                 let z: f64 = e.iter().sum();
                 for c in 0..dv {
@@ -358,18 +340,6 @@ mod tests {
             }
         }
         out
-    }
-
-    fn values(len: usize, seed: u64, amplitude: f32) -> Vec<f32> {
-        let mut s = seed;
-        (0..len)
-            .map(|_| {
-                s = s
-                    .wrapping_mul(6364136223846793005)
-                    .wrapping_add(1442695040888963407);
-                ((s >> 40) as f32 / (1u64 << 24) as f32 - 0.5) * 2.0 * amplitude
-            })
-            .collect()
     }
 
     /// Guards the blocked kernel against an f64 softmax, on every instruction set this CPU
@@ -418,13 +388,7 @@ mod tests {
         let v = t(6, [2, 50, 3, 16]).swap_dims(1, 2);
         let ours = attention(q.clone(), k.clone(), v.clone(), &device);
         let theirs = burn_attention(q, k, v, None, None, AttentionModuleOptions::default());
-        let diff = (ours - theirs)
-            .abs()
-            .max()
-            .into_data()
-            .convert::<f32>()
-            .try_into_vec::<f32>()
-            .unwrap()[0];
+        let diff = max_abs_diff(ours, theirs);
         assert!(diff < 1e-5, "max difference {diff}");
     }
 }

@@ -13,6 +13,7 @@
 //! Work is split into bands of output rows; each band accumulates all taps while its output
 //! tile is in cache. Autodiff devices keep Burn's convolution, whose backward is defined.
 
+use super::{gemm_f32, Strided};
 use burn::nn::conv::Conv2d;
 use burn::nn::PaddingConfig2d;
 use burn::tensor::{Tensor, TensorData};
@@ -38,25 +39,13 @@ pub fn conv2d(conv: &Conv2d, x: Tensor<4>) -> Tensor<4> {
     {
         return conv.forward(x);
     }
-    let host = |t: Tensor<4>| -> Vec<f32> {
-        t.into_data()
-            .convert::<f32>()
-            .try_into_vec::<f32>()
-            .expect("f32 after convert")
-    };
     let [n, ci, h, w] = x.dims();
     let weight = conv.weight.val();
     let co = weight.dims()[0];
-    let bias = conv.bias.as_ref().map(|b| {
-        b.val()
-            .into_data()
-            .convert::<f32>()
-            .try_into_vec::<f32>()
-            .expect("f32 after convert")
-    });
+    let bias = conv.bias.as_ref().map(|b| super::host_f32(b.val()));
     let out = conv_same_host(
-        &host(x),
-        &host(weight),
+        &super::host_f32(x),
+        &super::host_f32(weight),
         bias.as_deref(),
         [n, ci, h, w, co, kh],
     );
@@ -119,26 +108,21 @@ pub fn conv_same_host(
                     // `view`, and view + cols <= (h + 2p)·wp + 2p = plane by construction; the
                     // destination is this job's own tile.
                     unsafe {
-                        gemm::gemm(
-                            co,
-                            cols,
-                            ci,
+                        gemm_f32(
+                            [co, cols, ci],
                             tile.as_mut_ptr(),
-                            1,
                             cols as isize,
                             tap > 0,
-                            weight.as_ptr().add(tap),
-                            (k * k) as isize,
-                            (ci * k * k) as isize,
-                            src.as_ptr().add(view),
-                            1,
-                            plane as isize,
-                            1.0,
-                            1.0,
-                            false,
-                            false,
-                            false,
-                            gemm::Parallelism::None,
+                            Strided {
+                                ptr: weight.as_ptr().add(tap),
+                                row_stride: (ci * k * k) as isize,
+                                col_stride: (k * k) as isize,
+                            },
+                            Strided {
+                                ptr: src.as_ptr().add(view),
+                                row_stride: plane as isize,
+                                col_stride: 1,
+                            },
                         );
                     }
                 }
@@ -168,21 +152,10 @@ pub fn conv_same_host(
 
 #[cfg(test)]
 mod tests {
+    use super::super::test_util::{max_abs_diff, values};
     use super::*;
     use burn::nn::conv::Conv2dConfig;
     use burn::tensor::Device;
-
-    fn values(len: usize, seed: u64) -> Vec<f32> {
-        let mut s = seed;
-        (0..len)
-            .map(|_| {
-                s = s
-                    .wrapping_mul(6364136223846793005)
-                    .wrapping_add(1442695040888963407);
-                (s >> 40) as f32 / (1u64 << 24) as f32 - 0.5
-            })
-            .collect()
-    }
 
     /// Guards the shifted-view kernel against Burn's convolution: 3x3 and 7x7 kernels, with
     /// and without bias, several images, one row, and images tall enough to split into
@@ -201,23 +174,17 @@ mod tests {
                 .with_bias(bias)
                 .init(&device);
             conv.weight = burn::module::Param::from_tensor(Tensor::from_data(
-                TensorData::new(values(co * ci * k * k, 7), [co, ci, k, k]),
+                TensorData::new(values(co * ci * k * k, 7, 0.5), [co, ci, k, k]),
                 &device,
             ));
             let x = Tensor::<4>::from_data(
-                TensorData::new(values(n * ci * h * w, 9), [n, ci, h, w]),
+                TensorData::new(values(n * ci * h * w, 9, 0.5), [n, ci, h, w]),
                 &device,
             );
             let ours = conv2d(&conv, x.clone());
             let theirs = conv.forward(x);
             assert_eq!(ours.dims(), theirs.dims());
-            let diff = (ours - theirs)
-                .abs()
-                .max()
-                .into_data()
-                .convert::<f32>()
-                .try_into_vec::<f32>()
-                .unwrap()[0];
+            let diff = max_abs_diff(ours, theirs);
             assert!(
                 diff < 1e-5,
                 "{n}x{ci}x{h}x{w} -> {co}, k {k}: max difference {diff}"

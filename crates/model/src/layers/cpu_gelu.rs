@@ -22,11 +22,7 @@ pub fn gelu<const D: usize>(x: Tensor<D>) -> Tensor<D> {
         return activation::gelu(x);
     }
     let dims = x.dims();
-    let mut v = x
-        .into_data()
-        .convert::<f32>()
-        .try_into_vec::<f32>()
-        .expect("f32 after convert");
+    let mut v = super::host_f32(x);
     gelu_host(&mut v, Isa::detect());
     Tensor::from_data(TensorData::new(v, dims), &device)
 }

@@ -11,6 +11,87 @@ pub use attention::{Attention, QkNorm};
 pub use block::{Block, BlockSpec, LayerScale, Mlp, BLOCK_NORM_EPS, DINO_NORM_EPS};
 pub use rope::{frame_positions, RopeTables};
 
+/// A tensor's values as a host `Vec<f32>` (what the CPU inference kernels compute on).
+pub(crate) fn host_f32<const D: usize>(t: burn::tensor::Tensor<D>) -> Vec<f32> {
+    t.into_data()
+        .convert::<f32>()
+        .try_into_vec::<f32>()
+        .expect("f32 after convert")
+}
+
+/// A read-only strided matrix operand for [`gemm_f32`]: element `(r, c)` is at
+/// `ptr + r·row_stride + c·col_stride`.
+#[derive(Clone, Copy)]
+pub(crate) struct Strided {
+    pub ptr: *const f32,
+    pub row_stride: isize,
+    pub col_stride: isize,
+}
+
+/// `dst[m, n] = lhs[m, k] · rhs[k, n]` (or `+=` with `accumulate`), `dst` row-major with row
+/// stride `dst_row_stride`, single-threaded (the kernels parallelise over their own jobs).
+///
+/// # Safety
+/// Every element the shapes and strides address must lie inside live allocations, and `dst`
+/// must not overlap the operands or be written by another thread meanwhile.
+pub(crate) unsafe fn gemm_f32(
+    [m, n, k]: [usize; 3],
+    dst: *mut f32,
+    dst_row_stride: isize,
+    accumulate: bool,
+    lhs: Strided,
+    rhs: Strided,
+) {
+    // SAFETY: forwarded from the caller's contract.
+    unsafe {
+        gemm::gemm(
+            m,
+            n,
+            k,
+            dst,
+            1,
+            dst_row_stride,
+            accumulate,
+            lhs.ptr,
+            lhs.col_stride,
+            lhs.row_stride,
+            rhs.ptr,
+            rhs.col_stride,
+            rhs.row_stride,
+            1.0,
+            1.0,
+            false,
+            false,
+            false,
+            gemm::Parallelism::None,
+        );
+    }
+}
+
+/// Test helpers shared by the kernels' tests.
+#[cfg(test)]
+pub(crate) mod test_util {
+    use burn::tensor::Tensor;
+
+    /// Seeded values in `[-amplitude, amplitude)` (an LCG; no RNG crate needed).
+    pub fn values(len: usize, seed: u64, amplitude: f32) -> Vec<f32> {
+        let mut s = seed;
+        (0..len)
+            .map(|_| {
+                s = s
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                ((s >> 40) as f32 / (1u64 << 24) as f32 - 0.5) * 2.0 * amplitude
+            })
+            .collect()
+    }
+
+    /// `max |a - b|`.
+    pub fn max_abs_diff<const D: usize>(a: Tensor<D>, b: Tensor<D>) -> f32 {
+        super::host_f32((a - b).abs().max())[0]
+    }
+}
+
 /// Whether the CPU inference kernels (`cpu_attention`, `cpu_conv`, `cpu_gelu`, the bilinear
 /// resize) may run on `device`: the CPU backend *without* autodiff. They compute on host
 /// buffers, so on an autodiff device they would cut the graph. (`Device`'s equality ignores
@@ -63,13 +144,7 @@ mod tests {
             let g = input
                 .grad(&grads)
                 .unwrap_or_else(|| panic!("{name}: no gradient reached the input"));
-            let norm = g
-                .abs()
-                .sum()
-                .into_data()
-                .convert::<f32>()
-                .try_into_vec::<f32>()
-                .unwrap()[0];
+            let norm = super::host_f32(g.abs().sum())[0];
             assert!(norm > 0.0, "{name}: zero gradient");
         }
     }
