@@ -23,7 +23,7 @@ use envision4d_data::HostClip;
 use envision4d_eval::{evaluate_dataset, EvalOptions};
 use envision4d_model::checkpoint::checkpoint_config;
 use envision4d_model::ModelConfig;
-use envision4d_train::config::{DataConfig, DataLayout};
+use envision4d_train::config::{DataConfig, DataLayout, Purpose};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::{Path, PathBuf};
 use std::time::{SystemTime, UNIX_EPOCH};
@@ -190,17 +190,12 @@ pub fn run(args: DemoArgs) -> Result<()> {
 
     bar.set_message("evaluating");
     // Read back through the dataset, as `eval` reads it: the model sees the 8-bit PNGs.
-    let data = DataConfig {
-        layout: DataLayout::Synth,
-        root: clip_root.clone(),
-        stride: 1,
-        augment: Default::default(),
-    };
+    let data = DataConfig::new(DataLayout::Synth, clip_root.clone(), 1);
     // The clip was written a moment ago: failing to open, score or read it back is our bug,
     // not the user's input, so these errors are flattened (exit code 1).
     let ours = |e: &dyn std::fmt::Display| anyhow::anyhow!("internal: the generated clip: {e}");
-    let dataset =
-        envision4d_train::dataset::open_dataset(&data, cfg, &clip_root).map_err(|e| ours(&e))?;
+    let dataset = envision4d_train::dataset::open_dataset(&data, cfg, &clip_root, Purpose::Eval)
+        .map_err(|e| ours(&e))?;
     // Window 0 is the clip's first T_c + T_f frames (the only window the demo writes).
     let indices = [0];
     let device = args.backend.device();

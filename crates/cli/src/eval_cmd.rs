@@ -14,7 +14,7 @@ use envision4d_eval::{evaluate_dataset, summary, EvalOptions, Report, SweepPoint
 use envision4d_losses::{DepthAlignment, EvalCrop};
 use envision4d_model::checkpoint::checkpoint_config;
 use envision4d_model::{Envision4d, ModelConfig};
-use envision4d_train::config::{DataConfig, DataLayout};
+use envision4d_train::config::{DataConfig, DataLayout, Purpose};
 use indicatif::{ProgressBar, ProgressStyle};
 use shared::{backend_name, build_report, load_model, lpips_status, warm_up, Provenance};
 use std::path::{Path, PathBuf};
@@ -160,16 +160,7 @@ fn resolve(args: &EvalArgs) -> Result<Setup> {
                         .into(),
                 )
             })?;
-            (
-                model,
-                DataConfig {
-                    layout: DataLayout::Synth,
-                    root,
-                    stride: 1,
-                    augment: Default::default(),
-                },
-                0,
-            )
+            (model, DataConfig::new(DataLayout::Synth, root, 1), 0)
         }
     };
     if let Some(root) = &args.data {
@@ -220,9 +211,13 @@ pub fn run(args: EvalArgs) -> Result<()> {
         None => (model, setup.model.clone()),
     };
     let cfg = &horizon_cfg;
-    let dataset =
-        envision4d_train::dataset::open_dataset(&setup.data, &dataset_cfg, &setup.data.root)
-            .map_err(|e| InputError(e.to_string()))?;
+    let dataset = envision4d_train::dataset::open_dataset(
+        &setup.data,
+        &dataset_cfg,
+        &setup.data.root,
+        Purpose::Eval,
+    )
+    .map_err(|e| InputError(e.to_string()))?;
     let mut indices: Vec<usize> = match setup.clips {
         Selection::All => (0..dataset.len()).collect(),
         Selection::Split(split) => envision4d_train::dataset::split(&dataset, split, setup.seed),

@@ -132,8 +132,64 @@ fn dry_run(
             println!("{key}: {} ({state})", p.display());
         }
     }
+    describe_data(&cfg)?;
     // Building the optimiser and the teacher would load the (possibly 5 GB) weights again:
-    // the dry run stops at the resolved settings, the counts and the file check above.
+    // the dry run stops at the resolved settings, the counts and the file checks above.
+    Ok(())
+}
+
+/// What the run will read: layout, split, scenes, windows, frames, size and ground truth.
+/// A refused split is the same error (exit 2) the run would give.
+fn describe_data(cfg: &envision4d_train::TrainConfig) -> Result<()> {
+    use envision4d_train::config::{DataLayout, Purpose};
+    let data = &cfg.data;
+    envision4d_train::dataset::check_training_split(data)?;
+    let split = match data.layout {
+        DataLayout::Waymo => format!(
+            ", split {:?}, a window every {} frame(s), windows per scene: {}",
+            data.split_for(Purpose::Train),
+            data.stride,
+            data.windows_per_scene
+                .map_or("all".to_owned(), |n| n.to_string())
+        ),
+        _ => format!(", stride {}", data.stride),
+    };
+    println!(
+        "data: {} (layout {:?}{split})",
+        data.root.display(),
+        data.layout
+    );
+    if !data.root.is_dir() {
+        return Ok(());
+    }
+    let dataset =
+        envision4d_train::dataset::open_dataset(data, &cfg.model, &data.root, Purpose::Train)?;
+    let scenes: std::collections::BTreeSet<&str> =
+        dataset.entries().iter().map(|e| e.group.as_str()).collect();
+    let [h, w] = cfg.model.image_size;
+    println!(
+        "windows: {} from {} scene(s), {} frames each ({} context + {} future), fitted to {h}x{w}; {} source(s) skipped",
+        dataset.len(),
+        scenes.len(),
+        cfg.model.num_frames(),
+        cfg.model.context_frames,
+        cfg.model.future_frames,
+        dataset.skipped(),
+    );
+    if let Some(clip) = (!dataset.is_empty()).then(|| dataset.load(0)).transpose()? {
+        // No ground truth at all is an empty list (not "every frame has it").
+        let has = |f: &dyn Fn(&envision4d_data::FrameGt) -> bool| {
+            !clip.gt.is_empty() && clip.gt.iter().all(f)
+        };
+        let yes = |b: bool| if b { "yes" } else { "no" };
+        println!(
+            "ground truth (first window {}): intrinsics {}, poses {}, depth {}",
+            clip.id,
+            yes(has(&|g| g.intrinsics.is_some())),
+            yes(has(&|g| g.world_to_camera.is_some())),
+            yes(has(&|g| g.depth.is_some())),
+        );
+    }
     Ok(())
 }
 

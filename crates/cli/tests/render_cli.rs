@@ -213,3 +213,59 @@ fn train_dry_run_and_config_typo() {
         String::from_utf8_lossy(&o.stderr)
     );
 }
+
+/// Guards the Waymo training split: `--dry-run` says what the run will read (split, windows,
+/// scenes, frames, ground truth), and a config that would train on the validation split is
+/// an exit-2 error naming `data.split` and the way out.
+#[test]
+fn train_dry_run_reads_the_training_split_and_refuses_validation() {
+    let dir = tempfile::tempdir().unwrap();
+    for split in ["training", "validation"] {
+        std::fs::create_dir_all(dir.path().join(format!("waymo/{split}/000/images"))).unwrap();
+        for t in 0..=12 {
+            write_png(
+                &dir.path()
+                    .join(format!("waymo/{split}/000/images/{t:06}_0.png")),
+                84,
+                56,
+                t as u8,
+            );
+        }
+    }
+    let base = std::fs::read_to_string(
+        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../configs/synth-tiny.toml"),
+    )
+    .unwrap()
+    .replace("layout = \"synth\"", "layout = \"waymo\"")
+    .replace(
+        "root = \"data/synth-train\"",
+        &format!("root = {:?}", dir.path().join("waymo")),
+    );
+    let run = |extra: &str| {
+        let cfg = dir.path().join("cfg.toml");
+        std::fs::write(&cfg, base.replace("[data]\n", &format!("[data]\n{extra}"))).unwrap();
+        Command::new(env!("CARGO_BIN_EXE_envision4d"))
+            .args(["train", "--config", cfg.to_str().unwrap(), "--dry-run"])
+            .output()
+            .unwrap()
+    };
+    let o = run("");
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    // 12 listed timesteps, windows of 8 frames every 2 (synth-tiny's stride): starts 0, 2, 4.
+    assert!(out.contains("split \"training\""), "{out}");
+    assert!(
+        out.contains("windows: 3 from 1 scene(s), 8 frames each"),
+        "{out}"
+    );
+    assert!(out.contains("poses no"), "{out}");
+    let o = run("split = \"validation\"\n");
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("data.split") && err.contains("allow_eval_split"),
+        "{err}"
+    );
+    let o = run("split = \"validation\"\nallow_eval_split = true\n");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+}

@@ -225,6 +225,64 @@ fn waymo_layout_clips() {
     assert!(err.contains("000012_0.png"), "{err}");
 }
 
+/// Guards training windows on the Waymo layout: they come from the split named (not the
+/// evaluation split next to it), start every `stride` frames and may overlap, and
+/// `max_per_scene` caps them; the release's rule (a clip no longer than the interval)
+/// still holds for the evaluation reader.
+#[test]
+fn waymo_training_windows_slide_over_the_training_split() {
+    let dir = tempfile::tempdir().unwrap();
+    for split in ["training", "validation"] {
+        for t in 0..=10 {
+            write_png(
+                &dir.path().join(format!("{split}/000/images/{t:06}_0.png")),
+                8,
+                6,
+                t as u8,
+            );
+        }
+    }
+    // 10 listed timesteps (0..10), windows of 4 frames every 2: starts 0, 2, 4, 6.
+    let open = |cfg| ClipDataset::open(dir.path(), config(Layout::Waymo(cfg), 6, 8));
+    let ds = open(WaymoConfig::training("training", 2, None)).unwrap();
+    let ids: Vec<&str> = ds.entries().iter().map(|e| e.id.as_str()).collect();
+    assert_eq!(
+        ids,
+        [
+            "training/000#0",
+            "training/000#1",
+            "training/000#2",
+            "training/000#3"
+        ]
+    );
+    assert!(ds.entries()[1].frames[0].ends_with("training/000/images/000002_0.png"));
+    assert!(ds.entries()[1].frames[3].ends_with("000005_0.png"));
+    // Every frame: 7 windows; capped at 3.
+    assert_eq!(
+        open(WaymoConfig::training("training", 1, None))
+            .unwrap()
+            .len(),
+        7
+    );
+    assert_eq!(
+        open(WaymoConfig::training("training", 1, Some(3)))
+            .unwrap()
+            .len(),
+        3
+    );
+    // The evaluation reader still refuses windows longer than its interval.
+    let err = open(WaymoConfig {
+        interval: 2,
+        ..WaymoConfig::default()
+    })
+    .unwrap_err()
+    .to_string();
+    assert!(
+        err.contains("num_frames") && err.contains("interval 2"),
+        "{err}"
+    );
+}
+
 /// Guards a stray file with a huge timestamp: the scene must still scan without materialising
 /// every timestep up to it (which exhausted memory).
 #[test]

@@ -214,6 +214,62 @@ pub struct DataConfig {
     /// Playback augmentation of training windows (`[data.augment]`); off by default.
     #[serde(default)]
     pub augment: Augment,
+    /// `layout = "waymo"`: the split folder read. Training defaults to `training` (every
+    /// `stride`-th window of every scene); evaluation to `validation` with the release's
+    /// clips (10 per scene, starts 0, 15, …).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub split: Option<String>,
+    /// Training refuses a split named like an evaluation split (validation, test) unless
+    /// this is set: a run on it would train on the clips it is scored on.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub allow_eval_split: bool,
+    /// `layout = "waymo"`: windows per scene at most (training: all; evaluation: the
+    /// release's 10).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub windows_per_scene: Option<usize>,
+}
+
+/// Split names that hold evaluation data (case-insensitive).
+pub const EVAL_SPLITS: [&str; 4] = ["validation", "val", "test", "testing"];
+
+/// What a dataset is opened for: the Waymo layout reads different splits and windows.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Purpose {
+    Train,
+    Eval,
+}
+
+impl DataConfig {
+    /// A config with only a layout and a root (every other key at its default).
+    pub fn new(layout: DataLayout, root: PathBuf, stride: usize) -> DataConfig {
+        DataConfig {
+            layout,
+            root,
+            stride,
+            augment: Augment::default(),
+            split: None,
+            allow_eval_split: false,
+            windows_per_scene: None,
+        }
+    }
+
+    /// The split folder `purpose` reads (Waymo), with the defaults above.
+    pub fn split_for(&self, purpose: Purpose) -> String {
+        self.split.clone().unwrap_or_else(|| {
+            match purpose {
+                Purpose::Train => "training",
+                Purpose::Eval => "validation",
+            }
+            .into()
+        })
+    }
+
+    /// Whether training would read an evaluation split (see [`EVAL_SPLITS`]).
+    pub fn trains_on_eval_split(&self) -> bool {
+        self.layout == DataLayout::Waymo
+            && !self.allow_eval_split
+            && EVAL_SPLITS.contains(&self.split_for(Purpose::Train).to_lowercase().as_str())
+    }
 }
 
 /// How often a training window is played other than forwards. Both take away the shortcut

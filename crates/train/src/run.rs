@@ -5,6 +5,7 @@
 use crate::augment;
 use crate::batch::Batch;
 use crate::checkpoint::{self, MODEL_FILE};
+use crate::config::Purpose;
 use crate::config::{Stage, Teacher, TrainConfig};
 use crate::dataset::{open_dataset, split};
 use crate::error::{Result, TrainError};
@@ -164,6 +165,8 @@ pub fn run(
     opts: RunOptions,
     obs: &mut dyn Observer,
 ) -> Result<RunSummary> {
+    // Before anything is written: a run on an evaluation split is refused outright.
+    crate::dataset::check_training_split(&cfg.data)?;
     let out = cfg.run.out_dir.clone();
     let ckpt_root = out.join(CHECKPOINT_DIR);
     let config_path = out.join(CONFIG_FILE);
@@ -187,7 +190,12 @@ pub fn run(
     envision4d_data::atomic::write_bytes(&config_path, cfg.to_toml().as_bytes())
         .map_err(|e| TrainError::write(&config_path, e))?;
 
-    let dataset = Arc::new(open_dataset(&cfg.data, &cfg.model, &cfg.data.root)?);
+    let dataset = Arc::new(open_dataset(
+        &cfg.data,
+        &cfg.model,
+        &cfg.data.root,
+        Purpose::Train,
+    )?);
     let train = split(&dataset, Split::Train, cfg.seed);
     if train.is_empty() {
         return Err(TrainError::Unusable(format!(

@@ -14,15 +14,19 @@ use crate::resize::Fit;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-/// Loader settings; the defaults are the official loader's.
+/// Loader settings; the defaults are the official (evaluation) loader's.
 #[derive(Debug, Clone, PartialEq)]
 pub struct WaymoConfig {
     pub split: String,
     /// Frames between clip starts (15 at 10 Hz).
     pub interval: usize,
+    /// Windows per scene at most (`usize::MAX`: every window that fits).
     pub clips_per_scene: usize,
     /// Waymo camera index in the file name (0 = FRONT).
     pub camera: u32,
+    /// Whether windows may overlap (training's sliding windows). The release's clips do
+    /// not: there a window longer than `interval` is refused.
+    pub overlapping: bool,
 }
 
 impl Default for WaymoConfig {
@@ -32,6 +36,21 @@ impl Default for WaymoConfig {
             interval: 15,
             clips_per_scene: 10,
             camera: 0,
+            overlapping: false,
+        }
+    }
+}
+
+impl WaymoConfig {
+    /// Training windows: every `stride`-th window of every scene of `split`, up to
+    /// `max_per_scene` of them (`None`: all).
+    pub fn training(split: &str, stride: usize, max_per_scene: Option<usize>) -> WaymoConfig {
+        WaymoConfig {
+            split: split.into(),
+            interval: stride,
+            clips_per_scene: max_per_scene.unwrap_or(usize::MAX),
+            camera: 0,
+            overlapping: true,
         }
     }
 }
@@ -52,7 +71,7 @@ pub fn scan(root: &Path, spec: &ClipSpec, cfg: &WaymoConfig) -> Result<Scan> {
         return Err(DataError::config("interval", 0, "must be at least 1"));
     }
     // The official clip is `interval` frames long; a longer clip would read into the next.
-    if spec.num_frames() > cfg.interval {
+    if !cfg.overlapping && spec.num_frames() > cfg.interval {
         return Err(DataError::config(
             "num_frames",
             spec.num_frames(),
@@ -111,7 +130,12 @@ fn scene_clips(
     // the range becomes a path that does not exist, so that clip fails at load time.
     // Only the span the clips can reach is materialised: a stray file with a huge timestamp
     // must not make this list (and memory) explode.
-    let reach = (cfg.clips_per_scene.saturating_sub(1) * cfg.interval + spec.num_frames()) as i64;
+    let reach = cfg
+        .clips_per_scene
+        .saturating_sub(1)
+        .saturating_mul(cfg.interval)
+        .saturating_add(spec.num_frames())
+        .min(i64::MAX as usize) as i64;
     let timesteps: Vec<i64> = (t_min..t_max.min(t_min.saturating_add(reach))).collect();
     let path_of = |t: i64| {
         by_t.get(&t)
@@ -128,8 +152,8 @@ fn scene_clips(
     .any(|d| scene_dir.join(d).is_dir());
     let mut out = Vec::new();
     for k in 0..cfg.clips_per_scene {
-        let start = k * cfg.interval;
-        if start + spec.num_frames() > timesteps.len() {
+        let start = k.saturating_mul(cfg.interval);
+        if start.saturating_add(spec.num_frames()) > timesteps.len() {
             break;
         }
         let ts = timesteps[start..start + spec.num_frames()].to_vec();

@@ -160,10 +160,15 @@ fn backbone_stage_then_teacher() {
     let mut t = Trainer::new(c.clone(), &device).unwrap();
     let gs_before = flat_params(&t.model.gs_head);
     let hc = envision4d_data::HostClip::from_clip(
-        &envision4d_train::dataset::open_dataset(&c.data, &c.model, &data)
-            .unwrap()
-            .load(0)
-            .unwrap(),
+        &envision4d_train::dataset::open_dataset(
+            &c.data,
+            &c.model,
+            &data,
+            envision4d_train::config::Purpose::Train,
+        )
+        .unwrap()
+        .load(0)
+        .unwrap(),
     )
     .unwrap();
     let batch =
