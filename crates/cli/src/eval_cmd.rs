@@ -69,6 +69,10 @@ pub struct EvalArgs {
     /// --data alone; a clip of exactly T_c + T_f frames has one window whatever S is.
     #[arg(long, value_parser = clap::value_parser!(u64).range(1..))]
     stride: Option<u64>,
+    /// Print each window that would be scored, one line each (`<scene> start=<t0>
+    /// context=<t,..> scored=<t,..>`, frame times from the file names), and exit.
+    #[arg(long)]
+    list_windows: bool,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -233,6 +237,15 @@ pub fn run(args: EvalArgs) -> Result<()> {
         .into());
     }
     indices.truncate(args.max_clips.unwrap_or(usize::MAX).max(1));
+    if args.list_windows {
+        for &i in &indices {
+            println!(
+                "{}",
+                window_line(&dataset.entries()[i], cfg.context_frames, cfg.future_frames)
+            );
+        }
+        return Ok(());
+    }
     let device = args.backend.device();
     let lpips = lpips_status(args.lpips_weights.as_deref(), &device)?;
     let mut opts = EvalOptions::new(cfg.context_frames, lpips);
@@ -266,6 +279,37 @@ pub fn run(args: EvalArgs) -> Result<()> {
     shared::write_outputs(&args.out, &report)?;
     print_summary(&report, &args.out);
     Ok(())
+}
+
+/// `<scene> start=<t0> context=<t,..> scored=<t,..>` for one window: the times are the
+/// leading integers of the frame file names (`000015_0.png` → 15), or the frame's place in
+/// the window where a name has none. `scored` is the first `future` frames after the
+/// context (with `--future N` the window stays as long as the checkpoint's, as scored).
+fn window_line(entry: &envision4d_data::ClipEntry, context: usize, future: usize) -> String {
+    let times: Vec<String> = entry
+        .frames
+        .iter()
+        .enumerate()
+        .map(|(k, p)| {
+            let stem = p
+                .file_stem()
+                .map(|s| s.to_string_lossy())
+                .unwrap_or_default();
+            let digits: String = stem.chars().take_while(char::is_ascii_digit).collect();
+            digits
+                .parse::<u64>()
+                .map_or_else(|_| k.to_string(), |t| t.to_string())
+        })
+        .collect();
+    let (ctx, rest) = times.split_at(context.min(times.len()));
+    let scored = &rest[..future.min(rest.len())];
+    format!(
+        "{} start={} context={} scored={}",
+        entry.group,
+        times.first().map_or("-", String::as_str),
+        ctx.join(","),
+        scored.join(",")
+    )
 }
 
 fn run_sweep(

@@ -269,3 +269,61 @@ fn train_dry_run_reads_the_training_split_and_refuses_validation() {
     let o = run("split = \"validation\"\nallow_eval_split = true\n");
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
 }
+
+/// Guards `eval --list-windows` on the Waymo layout: the release's clips of `validation/`
+/// (starts 0, 15, 30; the first T_c frames are context, the rest scored), `--future 2`
+/// scoring only the first two future frames, and no output folder written.
+#[test]
+fn eval_lists_the_release_windows() {
+    let dir = tempfile::tempdir().unwrap();
+    let images = dir.path().join("waymo/validation/000/images");
+    std::fs::create_dir_all(&images).unwrap();
+    for t in 0..=40 {
+        write_png(&images.join(format!("{t:06}_0.png")), 84, 56, t as u8);
+    }
+    let cfg = dir.path().join("cfg.toml");
+    let text = std::fs::read_to_string(
+        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../configs/synth-tiny.toml"),
+    )
+    .unwrap()
+    .replace("layout = \"synth\"", "layout = \"waymo\"")
+    .replace(
+        "root = \"data/synth-train\"",
+        &format!("root = {:?}", dir.path().join("waymo")),
+    );
+    std::fs::write(&cfg, text).unwrap();
+    let ckpt = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../../models/envision4d-synth-tiny.safetensors");
+    let out = dir.path().join("eval-out");
+    let list = |extra: &[&str]| {
+        let mut args = vec![
+            "eval",
+            "--checkpoint",
+            ckpt.to_str().unwrap(),
+            "--config",
+            cfg.to_str().unwrap(),
+            "--split",
+            "all",
+            "--out",
+            out.to_str().unwrap(),
+            "--list-windows",
+        ];
+        args.extend_from_slice(extra);
+        let o = Command::new(env!("CARGO_BIN_EXE_envision4d"))
+            .args(&args)
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        String::from_utf8_lossy(&o.stdout).into_owned()
+    };
+    assert_eq!(
+        list(&[]).lines().collect::<Vec<_>>(),
+        [
+            "validation/000 start=0 context=0,1 scored=2,3,4,5,6,7",
+            "validation/000 start=15 context=15,16 scored=17,18,19,20,21,22",
+            "validation/000 start=30 context=30,31 scored=32,33,34,35,36,37",
+        ]
+    );
+    assert!(list(&["--future", "2"]).starts_with("validation/000 start=0 context=0,1 scored=2,3\n"));
+    assert!(!out.exists(), "--list-windows must not write outputs");
+}

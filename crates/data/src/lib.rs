@@ -29,6 +29,7 @@ pub use frame::{decode_image, Image};
 pub use geom::{Intrinsics, Mat4, Vec3};
 pub use host_clip::{hwc_to_chw, HostClip};
 pub use layout::waymo::WaymoConfig;
+pub use layout::ClipEntry;
 pub use prefetch::{Prefetch, Prefetcher};
 pub use resize::{Fit, FitMode, MODEL_SIZE};
 pub use split::{Split, SplitRatios};
