@@ -214,33 +214,34 @@ fn train_dry_run_and_config_typo() {
     );
 }
 
-/// Guards the Waymo training split: `--dry-run` says what the run will read (split, windows,
-/// scenes, frames, ground truth), and a config that would train on the validation split is
-/// an exit-2 error naming `data.split` and the way out.
-#[test]
-fn train_dry_run_reads_the_training_split_and_refuses_validation() {
-    let dir = tempfile::tempdir().unwrap();
-    for split in ["training", "validation"] {
-        std::fs::create_dir_all(dir.path().join(format!("waymo/{split}/000/images"))).unwrap();
-        for t in 0..=12 {
-            write_png(
-                &dir.path()
-                    .join(format!("waymo/{split}/000/images/{t:06}_0.png")),
-                84,
-                56,
-                t as u8,
-            );
+/// A Waymo-layout tree under `dir/waymo` (scene 000 of each split, frames 0..=last at 56x84)
+/// and the text of `configs/synth-tiny.toml` pointed at it.
+fn waymo_tree_config(dir: &Path, splits: &[&str], last: u32) -> String {
+    for split in splits {
+        let images = dir.join(format!("waymo/{split}/000/images"));
+        std::fs::create_dir_all(&images).unwrap();
+        for t in 0..=last {
+            write_png(&images.join(format!("{t:06}_0.png")), 84, 56, t as u8);
         }
     }
-    let base = std::fs::read_to_string(
+    std::fs::read_to_string(
         PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../configs/synth-tiny.toml"),
     )
     .unwrap()
     .replace("layout = \"synth\"", "layout = \"waymo\"")
     .replace(
         "root = \"data/synth-train\"",
-        &format!("root = {:?}", dir.path().join("waymo")),
-    );
+        &format!("root = {:?}", dir.join("waymo")),
+    )
+}
+
+/// Guards the Waymo training split: `--dry-run` says what the run will read (split, windows,
+/// scenes, frames, ground truth), and a config that would train on the validation split is
+/// an exit-2 error naming `data.split` and the way out.
+#[test]
+fn train_dry_run_reads_the_training_split_and_refuses_validation() {
+    let dir = tempfile::tempdir().unwrap();
+    let base = waymo_tree_config(dir.path(), &["training", "validation"], 12);
     let run = |extra: &str| {
         let cfg = dir.path().join("cfg.toml");
         std::fs::write(&cfg, base.replace("[data]\n", &format!("[data]\n{extra}"))).unwrap();
@@ -276,22 +277,8 @@ fn train_dry_run_reads_the_training_split_and_refuses_validation() {
 #[test]
 fn eval_lists_the_release_windows() {
     let dir = tempfile::tempdir().unwrap();
-    let images = dir.path().join("waymo/validation/000/images");
-    std::fs::create_dir_all(&images).unwrap();
-    for t in 0..=40 {
-        write_png(&images.join(format!("{t:06}_0.png")), 84, 56, t as u8);
-    }
     let cfg = dir.path().join("cfg.toml");
-    let text = std::fs::read_to_string(
-        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../configs/synth-tiny.toml"),
-    )
-    .unwrap()
-    .replace("layout = \"synth\"", "layout = \"waymo\"")
-    .replace(
-        "root = \"data/synth-train\"",
-        &format!("root = {:?}", dir.path().join("waymo")),
-    );
-    std::fs::write(&cfg, text).unwrap();
+    std::fs::write(&cfg, waymo_tree_config(dir.path(), &["validation"], 40)).unwrap();
     let ckpt = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
         .join("../../models/envision4d-synth-tiny.safetensors");
     let out = dir.path().join("eval-out");
