@@ -69,10 +69,72 @@ pub struct EvalArgs {
     /// --data alone; a clip of exactly T_c + T_f frames has one window whatever S is.
     #[arg(long, value_parser = clap::value_parser!(u64).range(1..))]
     stride: Option<u64>,
+    /// A named protocol (docs/EVAL.md): `release` scores the 4 future frames of the official
+    /// release's Waymo clips (num_frames 6), `paper` the 2 of §4.1 (T_c = T_f = 2). A
+    /// checkpoint that predicts more future frames predicts only those (as `--future`).
+    #[arg(long, value_enum)]
+    protocol: Option<Protocol>,
     /// Print each window that would be scored, one line each (`<scene> start=<t0>
     /// context=<t,..> scored=<t,..>`, frame times from the file names), and exit.
     #[arg(long)]
     list_windows: bool,
+}
+
+/// A named evaluation protocol.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+enum Protocol {
+    /// The official release: 2 context frames, the next 4 scored (`images[2:]` of 6).
+    Release,
+    /// The paper, §4.1: T_c = T_f = 2.
+    Paper,
+}
+
+impl Protocol {
+    const CONTEXT_FRAMES: usize = 2;
+
+    fn future_frames(self) -> usize {
+        match self {
+            Protocol::Release => 4,
+            Protocol::Paper => 2,
+        }
+    }
+
+    fn name(self) -> &'static str {
+        match self {
+            Protocol::Release => "release",
+            Protocol::Paper => "paper",
+        }
+    }
+}
+
+/// The horizon to score: `--future`, or the protocol's, checked against the checkpoint.
+fn horizon(args: &EvalArgs, model: &ModelConfig) -> Result<Option<usize>> {
+    let Some(p) = args.protocol else {
+        return Ok(args.future);
+    };
+    let (name, want) = (p.name(), p.future_frames());
+    if let Some(f) = args.future.filter(|&f| f != want) {
+        return Err(InputError(format!(
+            "--future {f} contradicts --protocol {name}, which scores {want} future frames"
+        ))
+        .into());
+    }
+    if model.context_frames != Protocol::CONTEXT_FRAMES {
+        return Err(InputError(format!(
+            "--protocol {name} needs {} context frames; the checkpoint takes {}",
+            Protocol::CONTEXT_FRAMES,
+            model.context_frames
+        ))
+        .into());
+    }
+    if model.future_frames < want {
+        return Err(InputError(format!(
+            "--protocol {name} scores {want} future frames; the checkpoint predicts only {}",
+            model.future_frames
+        ))
+        .into());
+    }
+    Ok(Some(want))
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -205,7 +267,7 @@ pub fn run(args: EvalArgs) -> Result<()> {
     let model = load_model(&setup.model, &args.checkpoint, args.backend)?;
     // The dataset keeps the checkpoint's T_c + T_f windows; a shorter horizon scores fewer.
     let dataset_cfg = setup.model.clone();
-    let (model, horizon_cfg) = match args.future {
+    let (model, horizon_cfg) = match horizon(&args, &setup.model)? {
         Some(h) => {
             let m = with_horizon(&model, h).map_err(|e| InputError(format!("--future: {e}")))?;
             let mut c = setup.model.clone();

@@ -273,7 +273,8 @@ fn train_dry_run_reads_the_training_split_and_refuses_validation() {
 
 /// Guards `eval --list-windows` on the Waymo layout: the release's clips of `validation/`
 /// (starts 0, 15, 30; the first T_c frames are context, the rest scored), `--future 2`
-/// scoring only the first two future frames, and no output folder written.
+/// and the named protocols scoring 2 (paper) or 4 (release) future frames, a contradicting
+/// `--future` refused, and no output folder written.
 #[test]
 fn eval_lists_the_release_windows() {
     let dir = tempfile::tempdir().unwrap();
@@ -312,5 +313,27 @@ fn eval_lists_the_release_windows() {
         ]
     );
     assert!(list(&["--future", "2"]).starts_with("validation/000 start=0 context=0,1 scored=2,3\n"));
+    assert!(list(&["--protocol", "paper"])
+        .starts_with("validation/000 start=0 context=0,1 scored=2,3\n"));
+    assert!(list(&["--protocol", "release"])
+        .starts_with("validation/000 start=0 context=0,1 scored=2,3,4,5\n"));
+    // A horizon that contradicts the protocol is an input error naming both.
+    let o = Command::new(env!("CARGO_BIN_EXE_envision4d"))
+        .args([
+            "eval",
+            "--checkpoint",
+            ckpt.to_str().unwrap(),
+            "--config",
+            cfg.to_str().unwrap(),
+        ])
+        .args(["--protocol", "paper", "--future", "3", "--list-windows"])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("--future 3") && err.contains("--protocol paper"),
+        "{err}"
+    );
     assert!(!out.exists(), "--list-windows must not write outputs");
 }
