@@ -111,9 +111,13 @@ impl Aggregator {
             global_blocks: (0..cfg.depth)
                 .map(|_| Block::new(spec(true), device))
                 .collect(),
-            time_blocks: (0..cfg.temporal_layers.len())
-                .map(|_| Block::new(spec(false), device))
-                .collect(),
+            // Without temporal attention no temporal block exists (nothing to train or load).
+            time_blocks: match cfg.temporal_attention {
+                TemporalPlacement::None => Vec::new(),
+                _ => (0..cfg.temporal_layers.len())
+                    .map(|_| Block::new(spec(false), device))
+                    .collect(),
+            },
             temporal_layers: cfg.temporal_layers,
             num_heads: cfg.num_heads,
             placement: cfg.temporal_attention,
@@ -197,6 +201,9 @@ impl Aggregator {
                     x = y.reshape([b * s, p, c]);
                 }
                 (Some(TemporalPlacement::PostLayer), Some(_)) => tap_globals.push(g.clone()),
+                (Some(TemporalPlacement::None), Some(_)) => {
+                    time_list.push(Tensor::cat(vec![g.clone(), g.clone()], 3));
+                }
                 _ => {}
             }
             if keep.contains(&l) {

@@ -112,6 +112,11 @@ pub enum TemporalPlacement {
     /// and the same four blocks are stacked after the last layer, feeding only the motion
     /// tokens (see [`crate::aggregator`]).
     PostLayer,
+    /// The ablation without temporal attention (Tab. 3, rows without TAttn): no temporal
+    /// blocks at all (none are built); the motion tokens take the global output at each
+    /// temporal layer in place of a temporal block's, `time_list[t] = cat(G_ℓt, G_ℓt)`, so
+    /// the motion head keeps its input and only the temporal attention is removed.
+    None,
 }
 
 impl TemporalPlacement {

@@ -232,6 +232,43 @@ fn post_layer_keeps_vggt_taps_and_stacks_temporal_blocks_after_the_last_layer() 
     }
 }
 
+/// Guards the ablation without temporal attention: no temporal block is built, the taps and
+/// camera tokens are plain VGGT's bit for bit, every motion token is `cat(G_ℓ, G_ℓ)` at the
+/// temporal layers, and the full forward (all heads) runs and stays finite.
+#[test]
+fn no_temporal_attention_builds_no_blocks_and_lifts_the_global_tokens() {
+    let device = Device::flex();
+    let cfg = small_config(MotionModel::Lifting, TemporalPlacement::None);
+    let model = Envision4d::new(&cfg, &device);
+    assert!(model.aggregator.time_blocks.is_empty());
+    let imgs = images(&cfg, &device);
+    let keep: Vec<usize> = (0..cfg.depth).collect();
+    let none = model.aggregator.forward(imgs.clone(), &keep);
+    let vggt = model
+        .aggregator
+        .forward_with(imgs.clone(), &keep, Temporal::Skip);
+    assert_eq!(taps(&none, &keep), taps(&vggt, &keep));
+    assert_eq!(none.time_list.len(), 4);
+    for (t, &l) in cfg.temporal_layers.iter().enumerate() {
+        let entry = none.time_list[t].clone();
+        let [b, s, p, c2] = entry.dims();
+        let first = host(entry.clone().slice([0..b, 0..s, 0..p, 0..c2 / 2]));
+        assert_eq!(
+            first,
+            global_half(vggt.layer(l)),
+            "time_list[{t}] first half"
+        );
+        assert_eq!(
+            host(temporal_half(&entry)),
+            first,
+            "time_list[{t}] second half"
+        );
+    }
+    let out = model.forward(imgs, Heads::ALL);
+    let motion = host(out.motion_enc.expect("motion head ran"));
+    assert!(motion.iter().all(|v| v.is_finite()));
+}
+
 /// Guards old configs and checkpoint metadata (written before the switches existed) against
 /// changing meaning: without the keys they are the paper model, and the paper model still
 /// serialises without them, so older readers (`deny_unknown_fields`) keep reading it.

@@ -165,6 +165,8 @@ pub enum MotionModel {
 pub enum TemporalAttention {
     InLayer,
     PostLayer,
+    /// No temporal attention (Tab. 3's rows without TAttn).
+    None,
 }
 
 /// An on/off ablation switch (an enum so a config reads `warmup = "off"`).

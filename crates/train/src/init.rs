@@ -69,9 +69,16 @@ fn init_from(
     } else {
         model.motion_head
     };
+    // Without temporal attention the variant has no temporal blocks: keep its (empty) list.
+    let time_blocks = if model.aggregator.placement == TemporalPlacement::None {
+        model.aggregator.time_blocks
+    } else {
+        base.aggregator.time_blocks
+    };
     Ok(Envision4d {
         aggregator: Aggregator {
             placement: model.aggregator.placement,
+            time_blocks,
             ..base.aggregator
         },
         motion_head,

@@ -83,6 +83,7 @@ fn ablation_switches(a: &AblationConfig) -> (ModelMotion, ModelPlacement) {
     let placement = match a.temporal_attention {
         TemporalAttention::InLayer => ModelPlacement::InLayer,
         TemporalAttention::PostLayer => ModelPlacement::PostLayer,
+        TemporalAttention::None => ModelPlacement::None,
     };
     (motion, placement)
 }
