@@ -4,9 +4,10 @@
 //! are ~23 MB each. With glibc's defaults, buffers above its (adaptive) mmap threshold are
 //! mapped and unmapped on every op, and freed heap tops are trimmed back to the kernel, so
 //! each op pays page faults and zero-filling of fresh pages: ~25% of the tiny forward
-//! (docs/PERFORMANCE.md, "Tiny widths"). Raising the mmap threshold to glibc's maximum and
-//! disabling the trim keeps freed memory in the process for the next op. Peak memory is
-//! still set by the live tensors; the process simply does not hand memory back between ops.
+//! (docs/PERFORMANCE.md, "What made the tiny widths fast"). Raising the mmap threshold to
+//! glibc's maximum and disabling the trim keeps freed memory in the process for the next
+//! op. Peak memory is still set by the live tensors; the process simply does not hand
+//! memory back between ops.
 
 /// glibc's largest accepted mmap threshold on 64-bit (`HEAP_MAX_SIZE / 2`).
 pub const MMAP_THRESHOLD_BYTES: i32 = 32 << 20;

@@ -35,7 +35,7 @@ pub const DEFAULT_DPT_FRAME_CHUNK: usize = 0;
 /// Pixels per automatic DPT-head pass: one 350x518 frame. At the paper's image size that is
 /// one frame at a time, which keeps the paper-size model's CPU inference well inside 24 GiB;
 /// at the 56x84 of the CPU training configs it is every map at once, so the 14 motion maps
-/// of a step are one pass of each op instead of 14 (forward + backward 0.73 -> 0.58 s for the
+/// of a step are one pass of each op instead of 14 (forward + backward 0.73 -> 0.47-0.53 s for the
 /// tiny model, docs/PERFORMANCE.md).
 pub const DPT_CHUNK_PIXELS: usize = 350 * 518;
 

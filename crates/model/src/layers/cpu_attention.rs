@@ -3,9 +3,10 @@
 //! Why our own: burn-flex's fused attention evaluates the softmax one score at a time with the
 //! scalar `expf` of libm. At the widths the CPU runs (head dim 16, 1,860 tokens in the global
 //! blocks) that exponential, not the two matrix products, was the largest single cost of the
-//! whole forward (docs/PERFORMANCE.md, "Tiny widths"). Here the products go to `gemm` (the
-//! kernels burn-flex itself calls, AVX-512 where the CPU has it) and the softmax runs 16 lanes
-//! at a time, compiled for AVX-512 and AVX2 + FMA and picked when the process starts.
+//! whole forward (docs/PERFORMANCE.md, "What made the tiny widths fast"). Here the products
+//! go to `gemm` (the kernels burn-flex itself calls, AVX-512 where the CPU has it) and the
+//! softmax runs 16 lanes at a time, compiled for AVX-512 and AVX2 + FMA and picked when the
+//! process starts.
 //!
 //! Each job is a block of [`QUERY_BLOCK`] query rows of one (batch, head): their full score
 //! rows are materialised (at most `QUERY_BLOCK x keys` floats, L2-sized), so the softmax is

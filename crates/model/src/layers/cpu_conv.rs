@@ -103,7 +103,8 @@ pub fn conv_same_host(
                     let view = (y0 + ky) * wp + kx;
                     // tile[Co, cols] += weight[:, :, ky, kx] · src[Ci, view .. view + cols]
                     // SAFETY: lhs reads co x ci elements at strides (ci·k², k²) from offset
-                    // `tap` of `weight` (in bounds: the last is (co-1)·ci·k² + (ci-1)·k² + tap);
+                    // `tap` of `weight` (in bounds: the last is
+                    // (co-1)·ci·k² + (ci-1)·k² + tap);
                     // rhs reads ci rows of `cols` contiguous floats at stride `plane` from
                     // `view`, and view + cols <= (h + 2p)·wp + 2p = plane by construction; the
                     // destination is this job's own tile.

@@ -2,9 +2,10 @@
 //! backend, vectorised.
 //!
 //! Why our own: burn-flex evaluates `erf` with scalar libm calls, ~5% of the tiny forward
-//! (docs/PERFORMANCE.md, "Tiny widths"). Here `erf` is Abramowitz & Stegun 7.1.26 (absolute
-//! error below 1.5e-7) on top of the softmax's polynomial `exp`, written lane-wise and
-//! compiled for AVX-512 and AVX2 + FMA, picked at run time like the attention kernel.
+//! (docs/PERFORMANCE.md, "What made the tiny widths fast"). Here `erf` is Abramowitz &
+//! Stegun 7.1.26 (absolute error below 1.5e-7) on top of the softmax's polynomial `exp`,
+//! written lane-wise and compiled for AVX-512 and AVX2 + FMA, picked at run time like the
+//! attention kernel.
 //! Autodiff devices keep Burn's op, whose backward is defined.
 
 use super::cpu_attention::{exp, Isa};
