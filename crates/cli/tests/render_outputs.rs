@@ -69,7 +69,12 @@ fn inputs() -> &'static Inputs {
             cfg.future_frames >= FUTURE,
             "the tests render {FUTURE} future frames"
         );
-        let mut model = Envision4d::new(&cfg, &Device::flex());
+        // Seeded: unseeded weights made a new scene every run, and now and then one whose
+        // Gaussian sits on the 1/255 alpha cut-off, where the PLY's f32 logit opacity flips
+        // it in or out of a pixel (a 1e-3 difference, seen once in a full-suite run).
+        let device = Device::flex();
+        device.seed(2024);
+        let mut model = Envision4d::new(&cfg, &device);
         envision4d_train::step::identity_pose_init(&mut model);
         let ckpt = dir.join("tiny.safetensors");
         save_checkpoint(&model, &cfg, &ckpt).unwrap();
