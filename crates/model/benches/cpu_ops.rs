@@ -112,7 +112,7 @@ fn main() {
                 AttentionModuleOptions::default(),
             )
         },
-        || cpu_attention::attention(q.clone(), k.clone(), v.clone(), &d),
+        || cpu_attention::attention(q.clone(), k.clone(), v.clone()),
     );
     let mlp = rand([1, 2, 930, 256]);
     row(

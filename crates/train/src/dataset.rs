@@ -27,9 +27,6 @@ pub fn open_dataset(
         },
         DataLayout::Waymo => Layout::Waymo(waymo_config(data, purpose)),
     };
-    if purpose == Purpose::Train {
-        check_training_split(data)?;
-    }
     let config = DatasetConfig {
         layout,
         spec: ClipSpec {
@@ -48,7 +45,8 @@ pub fn open_dataset(
 }
 
 /// Refuses to train on an evaluation split (see [`DataConfig::trains_on_eval_split`]),
-/// naming the key and the way out.
+/// naming the key and the way out. The training entry points call it (`run` before it
+/// writes anything, `train --dry-run`), not [`open_dataset`], which evaluation shares.
 pub fn check_training_split(data: &DataConfig) -> Result<()> {
     if data.trains_on_eval_split() {
         return Err(TrainError::invalid(
@@ -80,13 +78,14 @@ pub fn waymo_config(data: &DataConfig, purpose: Purpose) -> WaymoConfig {
     let split = data.split_for(purpose);
     match purpose {
         Purpose::Train => WaymoConfig::training(&split, data.stride, data.windows_per_scene),
-        Purpose::Eval => WaymoConfig {
-            split,
-            clips_per_scene: data
-                .windows_per_scene
-                .unwrap_or(WaymoConfig::default().clips_per_scene),
-            ..WaymoConfig::default()
-        },
+        Purpose::Eval => {
+            let release = WaymoConfig::default();
+            WaymoConfig {
+                split,
+                clips_per_scene: data.windows_per_scene.unwrap_or(release.clips_per_scene),
+                ..release
+            }
+        }
     }
 }
 

@@ -5,8 +5,7 @@
 use crate::augment;
 use crate::batch::Batch;
 use crate::checkpoint::{self, MODEL_FILE};
-use crate::config::Purpose;
-use crate::config::{Stage, Teacher, TrainConfig};
+use crate::config::{Purpose, Stage, Teacher, TrainConfig};
 use crate::dataset::{open_dataset, split};
 use crate::error::{Result, TrainError};
 use crate::log::JsonlLog;

@@ -75,7 +75,7 @@ impl Attention {
         // differentiable ops under autodiff.
         let device = q.device();
         let out = if super::cpu_inference(&device) {
-            cpu_attention::attention(q, k, v, &device)
+            cpu_attention::attention(q, k, v)
         } else {
             attention(q, k, v, None, None, AttentionModuleOptions::default())
         };

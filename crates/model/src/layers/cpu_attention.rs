@@ -14,7 +14,7 @@
 //! backward is defined; see [`super::attention::Attention::forward`].
 
 use super::{gemm_f32, Strided};
-use burn::tensor::{Device, Tensor, TensorData};
+use burn::tensor::{Tensor, TensorData};
 use rayon::prelude::*;
 
 /// Query rows per job: 32 rows of scores over 1,860 keys is 238 KB, which stays in L2.
@@ -49,15 +49,16 @@ impl Isa {
     }
 }
 
-/// `q: [B, H, N, d]`, `k: [B, H, M, d]`, `v: [B, H, M, dv]` on `device` (the CPU backend, no
-/// autodiff) → `[B, H, N, dv]`.
-pub fn attention(q: Tensor<4>, k: Tensor<4>, v: Tensor<4>, device: &Device) -> Tensor<4> {
+/// `q: [B, H, N, d]`, `k: [B, H, M, d]`, `v: [B, H, M, dv]` on the CPU backend (no
+/// autodiff) → `[B, H, N, dv]` on the same device.
+pub fn attention(q: Tensor<4>, k: Tensor<4>, v: Tensor<4>) -> Tensor<4> {
+    let device = q.device();
     let [b, h, n, d] = q.dims();
     let m = k.dims()[2];
     let dv = v.dims()[3];
     let (q, k, v) = (super::host_f32(q), super::host_f32(k), super::host_f32(v));
     let out = attention_host(&q, &k, &v, [b * h, n, m, d, dv], Isa::detect());
-    Tensor::from_data(TensorData::new(out, [b, h, n, dv]), device)
+    Tensor::from_data(TensorData::new(out, [b, h, n, dv]), &device)
 }
 
 /// The kernel on contiguous host buffers; `dims = [heads, N, M, d, dv]` (batch folded into
@@ -68,11 +69,9 @@ pub fn attention_host(q: &[f32], k: &[f32], v: &[f32], dims: [usize; 5], isa: Is
     assert_eq!(k.len(), heads * m * d, "k is not [heads, M, d]");
     assert_eq!(v.len(), heads * m * dv, "v is not [heads, M, dv]");
     let mut out = vec![0f32; heads * n * dv];
-    if out.is_empty() {
+    // No keys: nothing to attend to, zeros as Burn's op returns.
+    if out.is_empty() || m == 0 {
         return out;
-    }
-    if m == 0 {
-        return out; // no keys: nothing to attend to, as Burn's op returns zeros
     }
     let scale = 1.0 / (d as f32).sqrt();
     out.par_chunks_exact_mut(n * dv)
@@ -280,6 +279,7 @@ pub fn exp(x: f32) -> f32 {
 mod tests {
     use super::super::test_util::{max_abs_diff, values};
     use super::*;
+    use burn::tensor::Device;
 
     fn isas() -> Vec<Isa> {
         let mut v = vec![Isa::Portable];
@@ -387,7 +387,7 @@ mod tests {
         let q = t(4, [2, 50, 3, 16]).swap_dims(1, 2);
         let k = t(5, [2, 50, 3, 16]).swap_dims(1, 2);
         let v = t(6, [2, 50, 3, 16]).swap_dims(1, 2);
-        let ours = attention(q.clone(), k.clone(), v.clone(), &device);
+        let ours = attention(q.clone(), k.clone(), v.clone());
         let theirs = burn_attention(q, k, v, None, None, AttentionModuleOptions::default());
         let diff = max_abs_diff(ours, theirs);
         assert!(diff < 1e-5, "max difference {diff}");
