@@ -50,9 +50,9 @@ const METRICS: [Metric; 5] = [
     },
     Metric {
         title: "TRANSLATION ERROR (M)",
-        horizon: |h| h.trans_err_m,
-        method: |m| m.trans_err_m,
-        sweep: |p| p.trans_err_m,
+        horizon: |h| h.trans_err,
+        method: |m| m.trans_err,
+        sweep: |p| p.trans_err,
     },
 ];
 

@@ -45,6 +45,9 @@ impl ClipSpec {
 pub struct DepthMap {
     pub map: FloatMap,
     pub intrinsics: Intrinsics,
+    /// LiDAR-like: most cells hold no measurement (0), so the map must never be
+    /// interpolated. False for a rendered dense map (the synthetic layout).
+    pub sparse: bool,
 }
 
 /// Optional per-frame ground truth. Intrinsics refer to the fitted (output) frame.
@@ -56,6 +59,9 @@ pub struct FrameGt {
     /// Vehicle-to-world (STORM's `ego_to_world`).
     pub ego_to_world: Option<Mat4>,
     pub depth: Option<DepthMap>,
+    /// LiDAR returns in this frame's OpenCV camera coordinates (metres), when the layout
+    /// has points (STORM's `lidar/*.bin`); preferred over `depth` for evaluation.
+    pub lidar_points: Option<Vec<[f32; 3]>>,
     /// Scene flow to the next frame, world frame, metres, on the depth grid (synthetic only).
     pub flow: Option<FloatMap>,
 }

@@ -1,7 +1,8 @@
 //! A decoded clip as the model consumes it, still on the host (no tensors): frames planar
 //! CHW in [0, 1], with the ground truth the layout provides.
 
-use crate::clip::Clip;
+use crate::clip::{Clip, FrameGt};
+use crate::depth_grid::{resample_map, splat_points, DepthSource};
 use crate::error::{DataError, Result};
 use crate::geom::{Intrinsics, Mat4};
 
@@ -16,6 +17,11 @@ pub struct HostClip {
     pub cameras: Vec<(Mat4, Intrinsics)>,
     /// Per frame `H·W` z-depth (empty when unknown).
     pub depths: Vec<Vec<f32>>,
+    /// Per frame `H·W` z-depth for evaluation, 0 where nothing was measured: LiDAR moved
+    /// onto the frame grid (`depth_grid`), or the dense map. Empty when unknown.
+    pub eval_depths: Vec<Vec<f32>>,
+    /// Where `eval_depths` came from (the first frame's source; a clip does not mix them).
+    pub eval_depth_source: Option<DepthSource>,
 }
 
 /// Interleaved RGB (HWC) to planar (CHW).
@@ -56,12 +62,40 @@ impl HostClip {
                 (d.map.height == h && d.map.width == w).then(|| d.map.data.clone())
             })
             .collect::<Vec<_>>();
+        let mut eval_depth_source = None;
+        let eval_depths = clip
+            .gt
+            .iter()
+            .map_while(|g| {
+                let (grid, source) = eval_depth(g, (h, w))?;
+                eval_depth_source.get_or_insert(source);
+                Some(grid)
+            })
+            .collect::<Vec<_>>();
         Ok(HostClip {
             height: h,
             width: w,
             frames,
             cameras,
             depths,
+            eval_depths,
+            eval_depth_source,
         })
     }
+}
+
+/// One frame's evaluation depth on the `(h, w)` frame grid: LiDAR points when the layout has
+/// them, else its depth map moved onto the grid; `None` without intrinsics or depth.
+fn eval_depth(g: &FrameGt, size: (usize, usize)) -> Option<(Vec<f32>, DepthSource)> {
+    let k = g.intrinsics?;
+    if let Some(points) = &g.lidar_points {
+        return Some((splat_points(points, &k, size), DepthSource::LidarPoints));
+    }
+    let d = g.depth.as_ref()?;
+    let source = if d.sparse {
+        DepthSource::LidarGrid
+    } else {
+        DepthSource::Dense
+    };
+    Some((resample_map(d, &k, size), source))
 }

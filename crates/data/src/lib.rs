@@ -9,6 +9,7 @@
 pub mod atomic;
 pub mod clip;
 pub mod dataset;
+pub mod depth_grid;
 pub mod error;
 pub mod exr_io;
 pub mod frame;
@@ -23,6 +24,7 @@ pub mod split;
 pub mod synth;
 
 pub use clip::{Clip, ClipSpec, DepthMap, FrameGt};
+pub use depth_grid::DepthSource;
 pub use dataset::{ClipDataset, DatasetConfig, Layout};
 pub use error::{DataError, Result};
 pub use frame::{decode_image, Image};

@@ -15,6 +15,8 @@
 //! validation calls [`score`] with a model on a plain (non-autodiff) device.
 
 pub mod baselines;
+pub mod cross_frame;
+pub mod depth_eval;
 pub mod error;
 pub mod markdown;
 pub mod pose_error;
@@ -28,7 +30,7 @@ pub use markdown::{markdown, summary};
 pub use protocol::evaluate_clip;
 pub use report::{
     mean_metrics, ClipMetrics, CrossFrameScore, DepthScore, FrameScore, HorizonScore, Method,
-    MethodScore, Report, Timing,
+    MethodScore, PairScore, Report, Timing, TRANSLATION_ALIGNMENT, TRANSLATION_UNIT,
 };
 pub use sweep::{SweepPoint, SweepSetting};
 
@@ -52,8 +54,10 @@ pub enum Extent {
 pub struct EvalOptions {
     /// `T_c`: the first `T_c` frames of a clip are the model's input.
     pub context_frames: usize,
-    /// Pixels removed from every image (and depth map) before the metrics.
+    /// Pixels removed from every future image (and depth map) before the metrics.
     pub crop: EvalCrop,
+    /// Pixels removed before the cross-frame scores (the paper's boundary crop).
+    pub cross_frame_crop: EvalCrop,
     /// LPIPS network, or the reason it is not reported.
     pub lpips: LpipsStatus,
     /// Rasterizer settings (the culling thresholds are sweep knobs).
@@ -67,11 +71,13 @@ pub struct EvalOptions {
 }
 
 impl EvalOptions {
-    /// The paper's protocol: no crop, default rasterizer, median depth alignment, full extent.
+    /// The paper's protocol: no crop of the future frames, the release's crop for the
+    /// cross-frame scores, default rasterizer, median depth alignment, full extent.
     pub fn new(context_frames: usize, lpips: LpipsStatus) -> Self {
         EvalOptions {
             context_frames,
             crop: EvalCrop::default(),
+            cross_frame_crop: EvalCrop::RELEASE_MAIN,
             lpips,
             raster: RasterConfig::default(),
             depth_alignment: DepthAlignment::Median,

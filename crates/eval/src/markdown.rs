@@ -21,7 +21,9 @@ pub fn markdown(r: &Report) -> String {
         s,
         "- checkpoint: `{}`\n- data: `{}` (split `{}`), {} clips evaluated, {} skipped\n\
          - backend: {}; T_c = {}, T_f = {}; clips {}x{}, model input {}x{}\n\
-         - crop (top, bottom, left, right): {}, {}, {}, {}; depth alignment: {}\n\
+         - crop (top, bottom, left, right): {}, {}, {}, {}; cross-frame crop: {}, {}, {}, {}; \
+         depth alignment: {}\n\
+         - translation error: {} alignment, in {}\n\
          - LPIPS: {}\n",
         r.checkpoint,
         r.data,
@@ -39,7 +41,13 @@ pub fn markdown(r: &Report) -> String {
         r.crop.bottom,
         r.crop.left,
         r.crop.right,
+        r.cross_frame_crop.top,
+        r.cross_frame_crop.bottom,
+        r.cross_frame_crop.left,
+        r.cross_frame_crop.right,
         r.depth_alignment,
+        r.translation_alignment,
+        r.translation_unit,
         if r.lpips.available {
             "computed".to_owned()
         } else {
@@ -77,7 +85,7 @@ fn mean_tables(s: &mut String, m: &ClipMetrics) {
             x.ssim,
             opt(x.lpips, 4),
             opt(x.rot_err_deg, 2),
-            opt(x.trans_err_m, 3),
+            opt(x.trans_err, 3),
             opt(x.camera_auc30.map(|a| a * 100.0), 1),
             x.time_s
         );
@@ -104,7 +112,7 @@ fn mean_tables(s: &mut String, m: &ClipMetrics) {
                 h.ssim,
                 opt(h.lpips, 4),
                 opt(h.rot_err_deg, 2),
-                opt(h.trans_err_m, 3)
+                opt(h.trans_err, 3)
             );
         }
     }
@@ -131,19 +139,38 @@ fn mean_tables(s: &mut String, m: &ClipMetrics) {
             c.ssim,
             opt(c.lpips, 4)
         );
-    }
-    match &m.depth_rmse {
-        Some(d) => {
+        let _ = writeln!(
+            s,
+            "\nOne source frame alone (`i→j`: frame j rendered from frame i's Gaussians):\n\n\
+             | pair | PSNR (dB) | SSIM | LPIPS |\n|---|---|---|---|"
+        );
+        for p in &c.pairs {
             let _ = writeln!(
                 s,
-                "\n## Depth\n\nD-RMSE (context frames, {} alignment): {:.3} m\n",
-                d.alignment, d.rmse
+                "| {}→{} | {:.2} | {:.4} | {} |",
+                p.source,
+                p.target,
+                p.psnr,
+                p.ssim,
+                opt(p.lpips, 4)
             );
         }
-        None => {
-            let _ = writeln!(s, "\n## Depth\n\nD-RMSE: {NA} (no ground-truth depth)\n");
-        }
     }
+    let _ = writeln!(s, "\n## Depth\n");
+    for (what, d) in [
+        ("rendered depth, scored frames (Table 1)", &m.depth_rmse),
+        ("depth head, context frames", &m.context_depth_rmse),
+    ] {
+        let _ = match d {
+            Some(d) => writeln!(
+                s,
+                "- D-RMSE, {what}: {:.3} m ({} alignment, truth {}, frames {:?})",
+                d.rmse, d.alignment, d.source, d.frames
+            ),
+            None => writeln!(s, "- D-RMSE, {what}: {NA} (no ground-truth depth)"),
+        };
+    }
+    let _ = writeln!(s);
     let t = &m.timing;
     let _ = writeln!(
         s,
@@ -201,7 +228,7 @@ fn clip_table(s: &mut String, clips: &[ClipMetrics]) {
             m.psnr,
             m.ssim,
             opt(m.rot_err_deg, 2),
-            opt(m.trans_err_m, 3),
+            opt(m.trans_err, 3),
             opt(c.depth_rmse.as_ref().map(|d| d.rmse), 3),
             c.timing.encoder_s,
             c.timing.decoder_s
@@ -262,7 +289,7 @@ pub fn summary(report: &Report) -> String {
             m.ssim,
             opt(m.lpips, 4),
             opt(m.rot_err_deg, 2),
-            opt(m.trans_err_m, 3),
+            opt(m.trans_err, 3),
             opt(m.camera_auc30.map(|a| a * 100.0), 1),
             m.time_s
         );
@@ -274,8 +301,28 @@ pub fn summary(report: &Report) -> String {
             c.psnr, c.ssim
         );
     }
+    if let Some(c) = &mean.context {
+        for p in &c.pairs {
+            let _ = writeln!(
+                s,
+                "    {}→{}: PSNR {:.2} dB  SSIM {:.4}",
+                p.source, p.target, p.psnr, p.ssim
+            );
+        }
+    }
     if let Some(d) = &mean.depth_rmse {
-        let _ = writeln!(s, "  D-RMSE ({} alignment): {:.3} m", d.alignment, d.rmse);
+        let _ = writeln!(
+            s,
+            "  D-RMSE of the rendered future depth ({} alignment, truth {}): {:.3} m",
+            d.alignment, d.source, d.rmse
+        );
+    }
+    if let Some(d) = &mean.context_depth_rmse {
+        let _ = writeln!(
+            s,
+            "  D-RMSE of the depth head on context frames ({} alignment): {:.3} m",
+            d.alignment, d.rmse
+        );
     }
     let _ = writeln!(
         s,

@@ -21,9 +21,10 @@ const MAT4_LEN: usize = 16;
 pub struct PoseError {
     /// Angle of `R_pred · R_gtᵀ`, in degrees.
     pub rotation_deg: f64,
-    /// Distance between the predicted and true camera centres in frame 0's camera
-    /// coordinates, in the ground truth's unit (metres); no scale alignment.
-    pub translation_m: f64,
+    /// Distance between the scale-aligned predicted camera centre and the true one, in
+    /// frame 0's camera coordinates and the ground truth's unit (metres for every layout
+    /// with poses); the scale comes from [`translation_scale`].
+    pub translation: f64,
 }
 
 /// Extrinsics `[B, N, 4, 4]` of batch element `b` as host matrices (finite-checked).
@@ -95,14 +96,39 @@ pub fn relative_to_first(poses: &[Mat4]) -> Vec<Mat4> {
     poses.iter().map(|p| p.mul(&first_inv)).collect()
 }
 
+/// Below this `Σ‖c_pred‖²` the predicted cameras do not move and no scale can be fitted.
+const STILL_CAMERAS: f64 = 1e-12;
+
+/// The scale that maps a pose-free model's camera centres onto the true ones: least squares
+/// over the clip's cameras, `s = Σ c_pred·c_gt / Σ ‖c_pred‖²` (frame 0 is the origin of
+/// both, so it contributes nothing), floored at 0 because a negative scale would mirror the
+/// trajectory. 1 when the predicted cameras do not move.
+///
+/// One scale per clip, fitted on all `T_c + T_f` cameras like the trajectory alignment of
+/// ATE; it is reported next to the error (`pose_scale`).
+pub fn translation_scale(pred_rel: &[Mat4], gt_rel: &[Mat4]) -> f64 {
+    let (mut pg, mut pp) = (0.0, 0.0);
+    for (p, g) in pred_rel.iter().zip(gt_rel) {
+        let (cp, cg) = (camera_centre(p), camera_centre(g));
+        pg += cp.dot(cg);
+        pp += cp.length_squared();
+    }
+    if pp <= STILL_CAMERAS {
+        1.0
+    } else {
+        (pg / pp).max(0.0)
+    }
+}
+
 /// Error of predicted camera `j` against ground truth, both taken relative to their own
-/// frame 0 (`pred_rel`, `gt_rel` from [`relative_to_first`]).
-pub fn pose_error(pred_rel: &Mat4, gt_rel: &Mat4) -> PoseError {
+/// frame 0 (`pred_rel`, `gt_rel` from [`relative_to_first`]), the predicted centre scaled
+/// by `scale` ([`translation_scale`]).
+pub fn pose_error(pred_rel: &Mat4, gt_rel: &Mat4, scale: f64) -> PoseError {
     let diff = pred_rel.mul(&gt_rel.rigid_inverse());
-    let translation_m = camera_centre(pred_rel).distance(camera_centre(gt_rel));
+    let translation = (camera_centre(pred_rel) * scale).distance(camera_centre(gt_rel));
     PoseError {
         rotation_deg: rotation_angle_deg(&diff),
-        translation_m,
+        translation,
     }
 }
 

@@ -1,31 +1,32 @@
 //! One clip through the paper's protocol: the model sees the first `T_c` frames; its
 //! Gaussians, moved to each future time, are rendered at its predicted future cameras and
 //! scored (PSNR/SSIM/LPIPS) against the real future frames. Context frames are rendered only
-//! from the other frames' Gaussians (the cross-frame table). D-RMSE uses the context depth
-//! maps, AUC@30 and the future-pose errors use ground-truth cameras where the clip has them.
+//! from the other frames' Gaussians (the cross-frame table, `cross_frame`). D-RMSE scores the
+//! rendered depth of the future frames and, separately, the depth head on the context frames
+//! (`depth_eval`); AUC@30 and the future-pose errors use ground-truth cameras where the clip
+//! has them.
 
 use crate::baselines::{
     clip_images, constant_intrinsics, constant_velocity_poses, copy_last_images, copy_last_poses,
 };
+use crate::cross_frame::cross_frame;
+use crate::depth_eval::{depth_score, upsample_nearest, DepthTruth};
 use crate::error::{EvalError, Result};
 use crate::pose_error::{
     extrinsics_tensor, host_extrinsics, pose_error, relative_to_first, to_extrinsic,
+    translation_scale,
 };
 use crate::report::{
-    mean, mean_opt, ClipMetrics, CrossFrameScore, DepthScore, FrameScore, HorizonScore, Method,
-    MethodScore, Timing,
+    mean, mean_opt, ClipMetrics, DepthScore, HorizonScore, Method, MethodScore, Timing,
 };
 use crate::{EvalOptions, Extent};
 use burn::tensor::{Device, Tensor, TensorData};
 use envision4d_data::geom::Mat4;
 use envision4d_data::resize::resize_bilinear;
 use envision4d_data::{HostClip, Image};
-use envision4d_losses::{
-    camera_auc30, depth_rmse, evaluate_images, AlignmentScope, DepthAlignment, HostDepths,
-    HostImages, ImageMetrics,
-};
+use envision4d_losses::{camera_auc30, evaluate_images, DepthAlignment, HostDepths, HostImages, ImageMetrics};
 use envision4d_model::adapter::{AdaptedGaussians, Exclusion};
-use envision4d_model::scene::{predict_scene, render_targets, Scene};
+use envision4d_model::scene::{predict_scene, render_views, Scene};
 use envision4d_model::Envision4d;
 use std::time::Instant;
 
@@ -60,7 +61,15 @@ pub fn evaluate_clip(
     let extr = scene.pred.backbone.extrinsics.clone();
     let intr = scale_intrinsics(scene.pred.backbone.intrinsics.clone(), input, size);
     let future: Vec<usize> = (tc..n).collect();
-    let (rendered, decoder_s) = timed_render(&scene.adapted, &extr, &intr, &future, size, opts)?;
+    let (rendered, decoder_s) = timed_render(
+        &scene.adapted,
+        &extr,
+        &intr,
+        &future,
+        size,
+        opts,
+        Exclusion::SelfExclusive,
+    )?;
     let gt_future = clip_images(clip, &future)?;
     let pred_poses = host_extrinsics(&extr, 0)?;
     let gt_poses: Option<Vec<Mat4>> =
@@ -71,15 +80,22 @@ pub fn evaluate_clip(
         context: tc,
         opts,
     };
-    let mut methods =
-        vec![scorer.score(Method::Model, &rendered, &pred_poses, encoder_s + decoder_s)?];
-    let (mut context, mut depth, mut context_decoder_s) = (None, None, None);
+    let mut methods = vec![scorer.score(
+        Method::Model,
+        &rendered.images,
+        &pred_poses,
+        encoder_s + decoder_s,
+    )?];
+    let (mut context, mut depth, mut context_depth, mut context_decoder_s) =
+        (None, None, None, None);
     if opts.extent == Extent::Full {
         let targets: Vec<usize> = (0..tc).collect();
-        let (ctx, secs) = timed_render(&scene.adapted, &extr, &intr, &targets, size, opts)?;
+        let gt_context = clip_images(clip, &targets)?;
+        let (ctx, secs) = cross_frame(&scene.adapted, &extr, &intr, &gt_context, size, opts)?;
         context_decoder_s = Some(secs);
-        context = Some(cross_frame(&ctx, &clip_images(clip, &targets)?, opts)?);
-        depth = depth_score(&scene, clip, tc, opts)?;
+        context = Some(ctx);
+        depth = rendered_depth_score(&rendered, clip, &future, opts)?;
+        context_depth = head_depth_score(&scene, clip, tc, opts)?;
         methods.extend(baselines(
             &scene,
             clip,
@@ -99,6 +115,7 @@ pub fn evaluate_clip(
         methods,
         context,
         depth_rmse: depth,
+        context_depth_rmse: context_depth,
     })
 }
 
@@ -126,15 +143,16 @@ fn baselines(
     let cv_poses = constant_velocity_poses(pred_poses, tc, tf);
     let cv_intr = constant_intrinsics(intr, tc, tf);
     let cv_extr = extrinsics_tensor(&cv_poses, &device);
-    let (cv, cv_s) = timed_render(&still.adapted, &cv_extr, &cv_intr, &future, size, opts)?;
+    let own = Exclusion::SelfExclusive;
+    let (cv, cv_s) = timed_render(&still.adapted, &cv_extr, &cv_intr, &future, size, opts, own)?;
 
     let own_extr = extrinsics_tensor(pred_poses, &device);
-    let (nm, nm_s) = timed_render(&still.adapted, &own_extr, intr, &future, size, opts)?;
+    let (nm, nm_s) = timed_render(&still.adapted, &own_extr, intr, &future, size, opts, own)?;
 
     Ok(vec![
         scorer.score(Method::CopyLast, &copy, &copy_poses, copy_s)?,
-        scorer.score(Method::StaticCv, &cv, &cv_poses, encoder_s + cv_s)?,
-        scorer.score(Method::NoMotion, &nm, pred_poses, encoder_s + nm_s)?,
+        scorer.score(Method::StaticCv, &cv.images, &cv_poses, encoder_s + cv_s)?,
+        scorer.score(Method::NoMotion, &nm.images, pred_poses, encoder_s + nm_s)?,
     ])
 }
 
@@ -156,13 +174,17 @@ impl Scorer<'_> {
     ) -> Result<MethodScore> {
         let m = evaluate_images(images, self.gt, self.opts.crop, &self.opts.lpips)?;
         let tc = self.context;
-        let errors = self
-            .gt_poses
-            .map(|g| (relative_to_first(poses), relative_to_first(g)));
+        // Cameras are up to scale: one scale per clip maps the predicted camera centres onto
+        // the true ones (`translation_scale`) before the translation error is taken.
+        let errors = self.gt_poses.map(|g| {
+            let (p, g) = (relative_to_first(poses), relative_to_first(g));
+            let s = translation_scale(&p, &g);
+            (p, g, s)
+        });
         let per_horizon: Vec<HorizonScore> = (0..m.psnr.len())
             .map(|k| {
                 let j = tc + k;
-                let err = errors.as_ref().map(|(p, g)| pose_error(&p[j], &g[j]));
+                let err = errors.as_ref().map(|(p, g, s)| pose_error(&p[j], &g[j], *s));
                 HorizonScore {
                     horizon: k + 1,
                     frame: j,
@@ -170,7 +192,7 @@ impl Scorer<'_> {
                     ssim: m.ssim[k],
                     lpips: lpips_at(&m, k),
                     rot_err_deg: err.map(|e| e.rotation_deg),
-                    trans_err_m: err.map(|e| e.translation_m),
+                    trans_err: err.map(|e| e.translation),
                 }
             })
             .collect();
@@ -188,7 +210,8 @@ impl Scorer<'_> {
             ssim: mean(per_horizon.iter().map(|h| h.ssim)),
             lpips: mean_opt(per_horizon.iter().map(|h| h.lpips)),
             rot_err_deg: mean_opt(per_horizon.iter().map(|h| h.rot_err_deg)),
-            trans_err_m: mean_opt(per_horizon.iter().map(|h| h.trans_err_m)),
+            trans_err: mean_opt(per_horizon.iter().map(|h| h.trans_err)),
+            pose_scale: errors.as_ref().map(|e| e.2),
             camera_auc30: auc,
             time_s,
             per_horizon,
@@ -200,75 +223,47 @@ fn lpips_at(m: &ImageMetrics, k: usize) -> Option<f64> {
     m.lpips.as_ref().map(|l| l[k])
 }
 
-/// Cross-frame scores of the context renders.
-fn cross_frame(pred: &HostImages, gt: &HostImages, opts: &EvalOptions) -> Result<CrossFrameScore> {
-    let m = evaluate_images(pred, gt, opts.crop, &opts.lpips)?;
-    let per_frame: Vec<FrameScore> = (0..m.psnr.len())
-        .map(|j| FrameScore {
-            frame: j,
-            psnr: reported_psnr(m.psnr[j]),
-            ssim: m.ssim[j],
-            lpips: lpips_at(&m, j),
-        })
-        .collect();
-    Ok(CrossFrameScore {
-        psnr: mean(per_frame.iter().map(|f| f.psnr)),
-        ssim: mean(per_frame.iter().map(|f| f.ssim)),
-        lpips: mean_opt(per_frame.iter().map(|f| f.lpips)),
-        per_frame,
-    })
+/// Table 1's D-RMSE: the rendered depth of the scored frames against the clip's evaluation
+/// depth, with the future-frame crop.
+fn rendered_depth_score(
+    rendered: &Rendered,
+    clip: &HostClip,
+    frames: &[usize],
+    opts: &EvalOptions,
+) -> Result<Option<DepthScore>> {
+    let Some(source) = clip.eval_depth_source else {
+        return Ok(None);
+    };
+    let pred = HostDepths::from_tensor("rendered depth", rendered.depth.clone())?;
+    let truth = DepthTruth {
+        maps: &clip.eval_depths,
+        source,
+    };
+    depth_score(&pred, &truth, frames, opts.crop, opts.depth_alignment)
 }
 
-/// D-RMSE of the predicted context depth against the clip's z-depth (the convention the
-/// depth distillation trains against), at the clip's resolution: a prediction made at a
-/// smaller input size is upsampled nearest-neighbour, so the crop and the ground-truth
-/// pixels are those of the images. `None` without ground truth or without a valid pixel.
-fn depth_score(
+/// The depth head's maps of the context frames against the clip's evaluation depth, at the
+/// clip's resolution (a prediction made at a smaller input size is upsampled
+/// nearest-neighbour). `None` without ground truth or without a depth head.
+fn head_depth_score(
     scene: &Scene,
     clip: &HostClip,
     tc: usize,
     opts: &EvalOptions,
 ) -> Result<Option<DepthScore>> {
-    let (h, w) = (clip.height, clip.width);
-    let Some(depth) = scene.pred.depth.clone() else {
+    let (Some(depth), Some(source)) = (scene.pred.depth.clone(), clip.eval_depth_source) else {
         return Ok(None);
     };
-    if clip.depths.len() < tc
-        || clip.depths[..tc]
-            .iter()
-            .all(|d| d.iter().all(|&v| v <= 0.0))
-    {
-        return Ok(None);
-    }
     let [_, _, hi, wi, _] = depth.dims();
     let pred: Vec<f64> = depth.into_data().iter::<f64>().collect();
-    let mut up = Vec::with_capacity(tc * h * w);
-    for j in 0..tc {
-        let map = &pred[j * hi * wi..(j + 1) * hi * wi];
-        for y in 0..h {
-            let sy = (y * hi / h).min(hi - 1);
-            up.extend((0..w).map(|x| map[sy * wi + (x * wi / w).min(wi - 1)]));
-        }
-    }
-    let gt: Vec<f64> = clip.depths[..tc]
-        .iter()
-        .flat_map(|d| d.iter().map(|&v| v as f64))
-        .collect();
-    let pred = opts
-        .crop
-        .apply_depths(&HostDepths::new("predicted depth", up, [tc, h, w])?)?;
-    let gt = opts
-        .crop
-        .apply_depths(&HostDepths::new("ground-truth depth", gt, [tc, h, w])?)?;
-    if no_valid_pixel(&gt) {
-        return Ok(None);
-    }
-    let r = depth_rmse(&pred, &gt, opts.depth_alignment, AlignmentScope::PerFrame)?;
-    Ok(Some(DepthScore {
-        rmse: r.mean,
-        alignment: alignment_name(opts.depth_alignment).into(),
-        per_frame: r.per_frame,
-    }))
+    let up = upsample_nearest(&pred[..tc * hi * wi], tc, [hi, wi], [clip.height, clip.width]);
+    let pred = HostDepths::new("predicted depth", up, [tc, clip.height, clip.width])?;
+    let truth = DepthTruth {
+        maps: &clip.eval_depths,
+        source,
+    };
+    let frames: Vec<usize> = (0..tc).collect();
+    depth_score(&pred, &truth, &frames, opts.crop, opts.depth_alignment)
 }
 
 /// The JSON name of a depth alignment.
@@ -280,34 +275,35 @@ pub fn alignment_name(a: DepthAlignment) -> &'static str {
     }
 }
 
-/// Whether no ground-truth pixel is valid (> 0), e.g. after the crop removed them all.
-fn no_valid_pixel(gt: &HostDepths) -> bool {
-    (0..gt.shape()[0]).all(|i| gt.map(i).iter().all(|&v| v <= 0.0))
+/// Rendered frames read back to the host, with their expected depth still on the device
+/// (read only by the D-RMSE that needs it).
+pub(crate) struct Rendered {
+    pub images: HostImages,
+    pub depth: Tensor<3>,
 }
 
-/// Renders `targets` and waits for the device; returns host images and seconds.
-fn timed_render(
+/// Renders `targets` and waits for the device; returns the frames and seconds.
+pub(crate) fn timed_render(
     adapted: &AdaptedGaussians,
     extr: &Tensor<4>,
     intr: &Tensor<4>,
     targets: &[usize],
     size: [usize; 2],
     opts: &EvalOptions,
-) -> Result<(HostImages, f64)> {
+    exclusion: Exclusion,
+) -> Result<(Rendered, f64)> {
     let clock = Instant::now();
-    let out = render_targets(
-        adapted,
-        extr,
-        intr,
-        0,
-        targets,
-        Exclusion::SelfExclusive,
-        size,
-        &opts.raster,
-    )?;
-    sync(&out.device())?;
+    let out = render_views(adapted, extr, intr, 0, targets, exclusion, size, &opts.raster)?;
+    sync(&out.rgb.device())?;
     let secs = clock.elapsed().as_secs_f64();
-    Ok((HostImages::from_tensor("rendered frames", out)?, secs))
+    let images = HostImages::from_tensor("rendered frames", out.rgb)?;
+    Ok((
+        Rendered {
+            images,
+            depth: out.depth,
+        },
+        secs,
+    ))
 }
 
 fn sync(device: &Device) -> Result<()> {

@@ -5,7 +5,7 @@ use envision4d_splat::RasterConfig;
 use serde::{Deserialize, Serialize};
 
 /// Version of the JSON layout; bump it when a key changes meaning or disappears.
-pub const SCHEMA_VERSION: u32 = 1;
+pub const SCHEMA_VERSION: u32 = 2;
 
 /// What produced a set of future frames.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -42,7 +42,8 @@ pub struct HorizonScore {
     pub ssim: f64,
     pub lpips: Option<f64>,
     pub rot_err_deg: Option<f64>,
-    pub trans_err_m: Option<f64>,
+    /// Camera-centre error after the clip's scale alignment, ground-truth unit (metres).
+    pub trans_err: Option<f64>,
 }
 
 /// One method's future frames on one clip (or the mean over clips).
@@ -54,7 +55,9 @@ pub struct MethodScore {
     pub ssim: f64,
     pub lpips: Option<f64>,
     pub rot_err_deg: Option<f64>,
-    pub trans_err_m: Option<f64>,
+    pub trans_err: Option<f64>,
+    /// The scale applied to the predicted camera centres before `trans_err`.
+    pub pose_scale: Option<f64>,
     /// Over all `T_c + T_f` cameras; `None` without ground-truth poses.
     pub camera_auc30: Option<f64>,
     /// Seconds this method spent on the clip (encoder + its renders).
@@ -71,22 +74,43 @@ pub struct FrameScore {
     pub lpips: Option<f64>,
 }
 
-/// The cross-frame table: context frames rendered self-exclusively.
+/// Context frame `target` rendered from source frame `source`'s Gaussians alone.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct CrossFrameScore {
+pub struct PairScore {
+    pub source: usize,
+    pub target: usize,
     pub psnr: f64,
     pub ssim: f64,
     pub lpips: Option<f64>,
-    pub per_frame: Vec<FrameScore>,
 }
 
-/// D-RMSE of the context depth maps.
+/// The cross-frame table: context frames rendered without their own Gaussians, scored
+/// after the report's `cross_frame_crop`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CrossFrameScore {
+    /// Means over `per_frame`.
+    pub psnr: f64,
+    pub ssim: f64,
+    pub lpips: Option<f64>,
+    /// Each context frame from all the other context frames.
+    pub per_frame: Vec<FrameScore>,
+    /// Each ordered pair `source→target` (the appendix's `1→0` and `0→1`).
+    pub pairs: Vec<PairScore>,
+}
+
+/// D-RMSE of some frames' depth against the clip's evaluation depth.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct DepthScore {
     /// Mean over frames with valid ground truth, in the ground truth's unit (metres).
     pub rmse: f64,
-    /// `none`, `median` or `least_squares`, per frame.
+    /// `none`, `median` or `least_squares`, one scale per frame.
     pub alignment: String,
+    /// `dense`, `lidar_grid` or `lidar_points` (see docs/EVAL.md).
+    pub source: String,
+    /// The clip's frames scored, in order.
+    pub frames: Vec<usize>,
+    /// Scale applied to each frame's prediction; `None` where the frame has no truth.
+    pub scales: Vec<Option<f64>>,
     /// `None` for a frame without a valid ground-truth pixel.
     pub per_frame: Vec<Option<f64>>,
 }
@@ -111,7 +135,10 @@ pub struct ClipMetrics {
     /// The model first, then the baselines (absent in sweep points).
     pub methods: Vec<MethodScore>,
     pub context: Option<CrossFrameScore>,
+    /// Table 1's D-RMSE: the rendered depth of the scored (future) frames.
     pub depth_rmse: Option<DepthScore>,
+    /// The depth head's maps of the context frames.
+    pub context_depth_rmse: Option<DepthScore>,
 }
 
 impl ClipMetrics {
@@ -136,6 +163,17 @@ pub struct CropInfo {
     pub right: usize,
 }
 
+impl From<envision4d_losses::EvalCrop> for CropInfo {
+    fn from(c: envision4d_losses::EvalCrop) -> Self {
+        CropInfo {
+            top: c.top,
+            bottom: c.bottom,
+            left: c.left,
+            right: c.right,
+        }
+    }
+}
+
 /// The whole `metrics.json`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Report {
@@ -151,7 +189,12 @@ pub struct Report {
     /// Model input size `[H, W]`.
     pub input_size: [usize; 2],
     pub crop: CropInfo,
+    /// Crop of the cross-frame scores (backward renders leave the borders uncovered).
+    pub cross_frame_crop: CropInfo,
     pub depth_alignment: String,
+    /// How `trans_err` is aligned ([`TRANSLATION_ALIGNMENT`]) and its unit.
+    pub translation_alignment: String,
+    pub translation_unit: String,
     pub lpips: LpipsInfo,
     pub raster: RasterConfig,
     pub clips_evaluated: usize,
@@ -170,6 +213,12 @@ impl Report {
         serde_json::to_string_pretty(self).expect("report types serialise")
     }
 }
+
+/// `translation_alignment` of every report: one least-squares scale per clip on the camera
+/// centres (`pose_error::translation_scale`).
+pub const TRANSLATION_ALIGNMENT: &str = "least_squares_scale_per_clip";
+/// `translation_unit`: every layout with ground-truth poses is metric.
+pub const TRANSLATION_UNIT: &str = "m";
 
 /// Mean of the present values; `None` when none is present.
 pub fn mean_opt(values: impl IntoIterator<Item = Option<f64>>) -> Option<f64> {
@@ -197,6 +246,10 @@ pub fn mean_metrics(clips: &[ClipMetrics]) -> Option<ClipMetrics> {
         .collect();
     let contexts: Vec<&CrossFrameScore> = clips.iter().filter_map(|c| c.context.as_ref()).collect();
     let depths: Vec<&DepthScore> = clips.iter().filter_map(|c| c.depth_rmse.as_ref()).collect();
+    let head: Vec<&DepthScore> = clips
+        .iter()
+        .filter_map(|c| c.context_depth_rmse.as_ref())
+        .collect();
     Some(ClipMetrics {
         clip: "mean".into(),
         timing: Timing {
@@ -207,6 +260,7 @@ pub fn mean_metrics(clips: &[ClipMetrics]) -> Option<ClipMetrics> {
         methods,
         context: mean_context(&contexts),
         depth_rmse: mean_depth(&depths),
+        context_depth_rmse: mean_depth(&head),
     })
 }
 
@@ -222,7 +276,7 @@ fn mean_method(method: Method, all: &[&MethodScore]) -> MethodScore {
                 ssim: mean(at.iter().map(|h| h.ssim)),
                 lpips: mean_opt(at.iter().map(|h| h.lpips)),
                 rot_err_deg: mean_opt(at.iter().map(|h| h.rot_err_deg)),
-                trans_err_m: mean_opt(at.iter().map(|h| h.trans_err_m)),
+                trans_err: mean_opt(at.iter().map(|h| h.trans_err)),
             }
         })
         .collect();
@@ -232,7 +286,8 @@ fn mean_method(method: Method, all: &[&MethodScore]) -> MethodScore {
         ssim: mean(all.iter().map(|m| m.ssim)),
         lpips: mean_opt(all.iter().map(|m| m.lpips)),
         rot_err_deg: mean_opt(all.iter().map(|m| m.rot_err_deg)),
-        trans_err_m: mean_opt(all.iter().map(|m| m.trans_err_m)),
+        trans_err: mean_opt(all.iter().map(|m| m.trans_err)),
+        pose_scale: mean_opt(all.iter().map(|m| m.pose_scale)),
         camera_auc30: mean_opt(all.iter().map(|m| m.camera_auc30)),
         time_s: mean(all.iter().map(|m| m.time_s)),
         per_horizon,
@@ -242,6 +297,7 @@ fn mean_method(method: Method, all: &[&MethodScore]) -> MethodScore {
 fn mean_context(all: &[&CrossFrameScore]) -> Option<CrossFrameScore> {
     let first = all.first()?;
     let frames = all.iter().map(|c| c.per_frame.len()).min().unwrap_or(0);
+    let pairs = all.iter().map(|c| c.pairs.len()).min().unwrap_or(0);
     Some(CrossFrameScore {
         psnr: mean(all.iter().map(|c| c.psnr)),
         ssim: mean(all.iter().map(|c| c.ssim)),
@@ -254,6 +310,18 @@ fn mean_context(all: &[&CrossFrameScore]) -> Option<CrossFrameScore> {
                 lpips: mean_opt(all.iter().map(|c| c.per_frame[k].lpips)),
             })
             .collect(),
+        pairs: (0..pairs)
+            .map(|k| {
+                let at: Vec<&PairScore> = all.iter().map(|c| &c.pairs[k]).collect();
+                PairScore {
+                    source: at[0].source,
+                    target: at[0].target,
+                    psnr: mean(at.iter().map(|p| p.psnr)),
+                    ssim: mean(at.iter().map(|p| p.ssim)),
+                    lpips: mean_opt(at.iter().map(|p| p.lpips)),
+                }
+            })
+            .collect(),
     })
 }
 
@@ -263,6 +331,11 @@ fn mean_depth(all: &[&DepthScore]) -> Option<DepthScore> {
     Some(DepthScore {
         rmse: mean(all.iter().map(|d| d.rmse)),
         alignment: first.alignment.clone(),
+        source: first.source.clone(),
+        frames: first.frames[..frames].to_vec(),
+        scales: (0..frames)
+            .map(|k| mean_opt(all.iter().map(|d| d.scales[k])))
+            .collect(),
         per_frame: (0..frames)
             .map(|k| mean_opt(all.iter().map(|d| d.per_frame[k])))
             .collect(),
@@ -296,7 +369,7 @@ pub struct SweepPoint {
     pub ssim: f64,
     pub lpips: Option<f64>,
     pub rot_err_deg: Option<f64>,
-    pub trans_err_m: Option<f64>,
+    pub trans_err: Option<f64>,
     pub encoder_s: f64,
     pub decoder_s: f64,
     /// `encoder_s + decoder_s`, the x axis of the Pareto plot.

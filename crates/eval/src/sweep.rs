@@ -166,7 +166,7 @@ pub fn summarize(setting: &SweepSetting, clips: &[ClipMetrics]) -> Option<SweepP
         ssim: mean(scores.iter().map(|s| s.ssim)),
         lpips: mean_opt(scores.iter().map(|s| s.lpips)),
         rot_err_deg: mean_opt(scores.iter().map(|s| s.rot_err_deg)),
-        trans_err_m: mean_opt(scores.iter().map(|s| s.trans_err_m)),
+        trans_err: mean_opt(scores.iter().map(|s| s.trans_err)),
         encoder_s,
         decoder_s,
         time_s: encoder_s + decoder_s,

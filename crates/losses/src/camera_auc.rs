@@ -36,11 +36,11 @@ impl PairError {
 
 /// Relative pose errors of every unordered frame pair `(i < j)`.
 ///
-/// Definition (VGGT `test_co3d.py`): both sets of world-to-camera `E` are first aligned to
-/// their first camera (`E_k ← E_k · E_0⁻¹`, `align_to_first_camera`); the relative pose of a
-/// pair is then `E_i⁻¹ · E_j` (`se3_to_relative_pose_error`), for prediction and ground truth
-/// alike. (A textbook statement writes `E_i·E_j⁻¹`; VGGT's code computes `E_i⁻¹·E_j` after the
-/// alignment, and that is what is implemented.)
+/// Definition (VGGT `evaluation/test_co3d.py`, `se3_to_relative_pose_error`): for
+/// world-to-camera `E`, the relative pose of a pair is `E_i · E_j⁻¹` (camera j's frame
+/// expressed in camera i's), for prediction and ground truth alike. It does not depend on
+/// the world frame (`E_i W · (E_j W)⁻¹ = E_i E_j⁻¹`), so no alignment to the first camera is
+/// needed, and its translation is camera j's centre seen from camera i.
 /// * Rotation: `err_R = arccos(1 − 2·max(1 − ⟨q_pred, q_gt⟩², 1e-15))`, where
 ///   `⟨q_pred, q_gt⟩² = (1 + tr(R_gtᵀ R_pred)) / 4` is the squared quaternion dot product
 ///   (identical to VGGT's `mat_to_quat` route for rotation matrices, without its branches).
@@ -70,7 +70,10 @@ pub fn relative_pose_errors(pred: &[Extrinsic], gt: &[Extrinsic]) -> Result<Vec<
         let flat: Vec<f64> = set.iter().flatten().flatten().copied().collect();
         crate::error::ensure_finite(what, &flat)?;
     }
-    let (pred, gt) = (align_to_first(pred), align_to_first(gt));
+    let (pred, gt): (Vec<DMat4>, Vec<DMat4>) = (
+        pred.iter().map(homogeneous).collect(),
+        gt.iter().map(homogeneous).collect(),
+    );
     let mut out = Vec::new();
     for i in 0..pred.len() {
         for j in i + 1..pred.len() {
@@ -158,16 +161,9 @@ fn inverse_se3(m: &DMat4) -> DMat4 {
     )
 }
 
-/// VGGT's `align_to_first_camera`: `E_k · E_0⁻¹`, so the first camera becomes the world
-/// frame and the errors no longer depend on the world frame.
-fn align_to_first(set: &[Extrinsic]) -> Vec<DMat4> {
-    let first_inv = inverse_se3(&homogeneous(&set[0]));
-    set.iter().map(|e| homogeneous(e) * first_inv).collect()
-}
-
-/// `E_a⁻¹ · E_b` as rotation and translation.
+/// `E_a · E_b⁻¹` as rotation and translation.
 fn relative(a: &DMat4, b: &DMat4) -> (DMat3, DVec3) {
-    let m = inverse_se3(a) * *b;
+    let m = *a * inverse_se3(b);
     (DMat3::from_mat4(m), m.w_axis.truncate())
 }
 

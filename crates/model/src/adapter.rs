@@ -289,6 +289,9 @@ pub enum Exclusion {
     SelfExclusive,
     /// Geometric warm-up: a context frame also uses its own Gaussians, unmoved.
     IncludeOwn,
+    /// Only source frame `i`'s Gaussians, moved to the target time (the appendix's
+    /// cross-frame table: `1→0` renders frame 0 from frame 1 alone).
+    OnlySource(usize),
 }
 
 /// Gaussians of batch element `b` as seen at timestamp `j`: the union over source frames
@@ -309,6 +312,9 @@ pub fn gaussians_at(
     let (mut means, mut quats, mut scales, mut opac, mut colors) =
         (vec![], vec![], vec![], vec![], vec![]);
     for i in 0..s {
+        if matches!(exclusion, Exclusion::OnlySource(src) if src != i) {
+            continue;
+        }
         let moved = if i == j {
             if exclusion == Exclusion::SelfExclusive {
                 continue;

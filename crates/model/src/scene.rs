@@ -155,9 +155,17 @@ pub fn gaussians_for(a: &AdaptedGaussians, b: usize, j: usize, exclusion: Exclus
     }
 }
 
+/// Rendered colour `[F, 3, H, W]` and expected depth `[F, H, W]` of target frames.
+#[derive(Debug, Clone)]
+pub struct RenderedViews {
+    pub rgb: Tensor<4>,
+    pub depth: Tensor<3>,
+}
+
 /// Renders target frames `targets` of batch element `b` (each from the Gaussians at that
 /// time under `exclusion`) with cameras `extrinsics [B, N, 4, 4]` / `intrinsics
 /// [B, N, 3, 3]`; returns `[F, 3, H, W]`.
+#[allow(clippy::too_many_arguments)]
 pub fn render_targets(
     adapted: &AdaptedGaussians,
     extrinsics: &Tensor<4>,
@@ -168,7 +176,26 @@ pub fn render_targets(
     size: [usize; 2],
     raster: &RasterConfig,
 ) -> Result<Tensor<4>> {
+    render_views(
+        adapted, extrinsics, intrinsics, b, targets, exclusion, size, raster,
+    )
+    .map(|v| v.rgb)
+}
+
+/// [`render_targets`] with the expected depth as well (the rasterizer computes it anyway).
+#[allow(clippy::too_many_arguments)]
+pub fn render_views(
+    adapted: &AdaptedGaussians,
+    extrinsics: &Tensor<4>,
+    intrinsics: &Tensor<4>,
+    b: usize,
+    targets: &[usize],
+    exclusion: Exclusion,
+    size: [usize; 2],
+    raster: &RasterConfig,
+) -> Result<RenderedViews> {
     let mut frames = Vec::with_capacity(targets.len());
+    let mut depths = Vec::with_capacity(targets.len());
     for &j in targets {
         let g = gaussians_for(adapted, b, j, exclusion);
         let cams = Cameras {
@@ -185,6 +212,10 @@ pub fn render_targets(
         };
         let out = render(&g, &cams, raster)?;
         frames.push(out.rgb.permute([0, 3, 1, 2]));
+        depths.push(out.depth);
     }
-    Ok(Tensor::cat(frames, 0))
+    Ok(RenderedViews {
+        rgb: Tensor::cat(frames, 0),
+        depth: Tensor::cat(depths, 0),
+    })
 }

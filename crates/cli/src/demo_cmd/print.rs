@@ -76,7 +76,7 @@ pub fn scores(report: &Report) -> String {
             m.psnr,
             m.ssim,
             opt(m.rot_err_deg, 2),
-            opt(m.trans_err_m, 3),
+            opt(m.trans_err, 3),
             m.time_s,
             time_split(m, clip)
         );

@@ -12,7 +12,7 @@ use envision4d_data::{atomic, ClipDataset};
 use envision4d_eval::report::{CropInfo, LpipsInfo, SCHEMA_VERSION};
 use envision4d_eval::{
     evaluate_dataset, markdown, mean_metrics, protocol::alignment_name, EvalOptions, EvalRun,
-    Report, SweepPoint,
+    Report, SweepPoint, TRANSLATION_ALIGNMENT, TRANSLATION_UNIT,
 };
 use envision4d_losses::{LpipsNet, LpipsStatus};
 use envision4d_model::checkpoint::{load_checkpoint, CheckpointKind};
@@ -106,13 +106,11 @@ pub fn build_report(
         future_frames: model.future_frames(),
         image_size: cfg.image_size,
         input_size: cfg.image_size,
-        crop: CropInfo {
-            top: opts.crop.top,
-            bottom: opts.crop.bottom,
-            left: opts.crop.left,
-            right: opts.crop.right,
-        },
+        crop: CropInfo::from(opts.crop),
+        cross_frame_crop: CropInfo::from(opts.cross_frame_crop),
         depth_alignment: alignment_name(opts.depth_alignment).into(),
+        translation_alignment: TRANSLATION_ALIGNMENT.into(),
+        translation_unit: TRANSLATION_UNIT.into(),
         lpips,
         raster: opts.raster,
         clips_evaluated: run.clips.len(),

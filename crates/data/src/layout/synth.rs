@@ -218,7 +218,9 @@ pub fn load_synth_gt(
             depth: Some(DepthMap {
                 map: depth,
                 intrinsics: cam.intrinsics,
+                sparse: false,
             }),
+            lidar_points: None,
             flow: Some(flow),
         });
     }

@@ -147,6 +147,7 @@ fn scene_clips(
         "cam_to_world",
         "ego_to_world",
         "depth_flows_4",
+        "lidar",
     ]
     .iter()
     .any(|d| scene_dir.join(d).is_dir());
@@ -287,13 +288,63 @@ pub fn load_storm_gt(
             }
             _ => None,
         };
+        let lidar_points = match (find_t(&scene.join("lidar"), t, ".bin"), cam_to_ego) {
+            (Some(p), Some(c2e)) => Some(read_lidar_points(&p, &c2e)?),
+            (Some(p), None) => {
+                return Err(DataError::gt(
+                    p,
+                    format!("LiDAR points without cam_to_ego/{cam}.txt to bring them into the camera"),
+                ))
+            }
+            _ => None,
+        };
         out.push(FrameGt {
             intrinsics: k_source.map(|k| fit.intrinsics(&k, source_size)),
             world_to_camera,
             ego_to_world,
             depth,
+            lidar_points,
             flow: None,
         });
+    }
+    Ok(out)
+}
+
+/// Columns of one STORM LiDAR record: origin xyz, point xyz, flow xyz, flow class.
+pub const LIDAR_COLUMNS: usize = 10;
+/// Columns of the point itself within a record.
+const LIDAR_POINT: std::ops::Range<usize> = 3..6;
+
+/// `lidar/<t>.bin` (float32 records of [`LIDAR_COLUMNS`], points in the vehicle frame of
+/// that timestep) as points in the OpenCV camera frame; only points in front of the camera
+/// are kept.
+fn read_lidar_points(path: &Path, cam_to_ego: &Mat4) -> Result<Vec<[f32; 3]>> {
+    let bytes = std::fs::read(path).map_err(|e| DataError::gt(path, e.to_string()))?;
+    let record = LIDAR_COLUMNS * 4;
+    if bytes.len() % record != 0 {
+        return Err(DataError::gt(
+            path,
+            format!(
+                "{} bytes is not a whole number of {LIDAR_COLUMNS}-float records",
+                bytes.len()
+            ),
+        ));
+    }
+    // Vehicle -> Waymo camera axes -> OpenCV camera axes.
+    let ego_to_cv = OPENCV_TO_WAYMO_CAMERA
+        .rigid_inverse()
+        .mul(&cam_to_ego.rigid_inverse());
+    let mut out = Vec::with_capacity(bytes.len() / record);
+    for rec in bytes.chunks_exact(record) {
+        let f = |c: usize| f32::from_le_bytes([rec[4 * c], rec[4 * c + 1], rec[4 * c + 2], rec[4 * c + 3]]);
+        let [x, y, z] = [f(LIDAR_POINT.start), f(LIDAR_POINT.start + 1), f(LIDAR_POINT.end - 1)];
+        if !(x.is_finite() && y.is_finite() && z.is_finite()) {
+            return Err(DataError::gt(path, "a LiDAR point is not finite"));
+        }
+        let p = ego_to_cv.transform_point(crate::geom::Vec3::new(x as f64, y as f64, z as f64));
+        if p.z > 0.0 {
+            out.push([p.x as f32, p.y as f32, p.z as f32]);
+        }
     }
     Ok(out)
 }
@@ -319,5 +370,6 @@ fn read_lidar_depth(path: &Path, k: &Intrinsics, source_size: (usize, usize)) ->
             data,
         },
         intrinsics: k.resized(source_size, (h, w)),
+        sparse: true,
     })
 }

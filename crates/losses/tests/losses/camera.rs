@@ -66,7 +66,7 @@ fn all_pairs_fifteen_degrees() {
     assert!((auc - 0.5).abs() <= 1.0 / 30.0 + 1e-12, "{auc}");
 }
 
-/// Guards all-pairs enumeration, first-camera alignment (world-frame invariance) and the
+/// Guards all-pairs enumeration, world-frame invariance and the
 /// scale-free translation term on a 4-frame clip with errors 7.5°·(j − i).
 #[test]
 fn four_frame_clip_with_known_errors() {
@@ -101,6 +101,28 @@ fn four_frame_clip_with_known_errors() {
     for (a, b) in errs.iter().zip(&again) {
         assert!((a.max_deg() - b.max_deg()).abs() < 1e-6, "{a:?} vs {b:?}");
     }
+}
+
+/// Guards the pair convention (VGGT's `E_i·E_j⁻¹`, not `E_i⁻¹·E_j`): the translation of a
+/// pair is camera j's centre seen from camera i, so a prediction that gets camera 2's centre
+/// right in camera 1's frame but its rotation wrong has no translation error, only rotation.
+#[test]
+fn pair_translation_is_seen_from_the_first_camera() {
+    let gt = vec![
+        rz(0.0, [0.0; 3]),
+        rz(90.0, [0.0; 3]),
+        rz(90.0, [-1.0, 0.0, 0.0]),
+    ];
+    let pred = vec![
+        rz(0.0, [0.0; 3]),
+        rz(90.0, [0.0; 3]),
+        rz(0.0, [0.0, -1.0, 0.0]),
+    ];
+    let errs = relative_pose_errors(&pred, &gt).unwrap();
+    let e12 = errs.iter().find(|e| (e.i, e.j) == (1, 2)).unwrap();
+    // E_1·E_2⁻¹: gt t = (1, 0, 0); pred t = −Rz(90)·(0, −1, 0) = (−1, 0, 0): the same line.
+    assert!(e12.translation_deg < 1e-4, "{e12:?}");
+    assert!((e12.rotation_deg - 90.0).abs() < 1e-6, "{e12:?}");
 }
 
 /// Guards invalid pose input: NaN, one frame, mismatched counts.

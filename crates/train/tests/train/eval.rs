@@ -5,7 +5,9 @@ use crate::common::{synth_clip, tiny_config};
 use burn::tensor::Device;
 use envision4d_data::geom::{Mat4, Vec3};
 use envision4d_eval::baselines::clip_images;
-use envision4d_eval::pose_error::{extrapolate_constant_velocity, pose_error, relative_to_first};
+use envision4d_eval::pose_error::{
+    extrapolate_constant_velocity, pose_error, relative_to_first, translation_scale,
+};
 use envision4d_eval::sweep::{mark_pareto, summarize, with_horizon, Knob, SweepSetting};
 use envision4d_eval::{evaluate_clip, mean_metrics, ClipMetrics, EvalOptions, Extent, Method};
 use envision4d_losses::{psnr, LpipsStatus};
@@ -48,7 +50,7 @@ fn full_evaluation_has_every_method_horizon_and_table() {
         let auc = s.camera_auc30.expect("synthetic clips have GT poses");
         assert!((0.0..=1.0).contains(&auc));
         for h in &s.per_horizon {
-            assert!(h.rot_err_deg.unwrap().is_finite() && h.trans_err_m.unwrap() >= 0.0);
+            assert!(h.rot_err_deg.unwrap().is_finite() && h.trans_err.unwrap() >= 0.0);
         }
         assert!(s.time_s >= 0.0);
     }
@@ -102,8 +104,8 @@ fn constant_velocity_continues_uniform_motion() {
         .collect();
     let got = extrapolate_constant_velocity(&traj[1], &traj[2], 2);
     for (g, w) in got.iter().zip(&traj[3..]) {
-        let e = pose_error(g, w);
-        assert!(e.rotation_deg < 1e-6 && e.translation_m < 1e-9, "{e:?}");
+        let e = pose_error(g, w, 1.0);
+        assert!(e.rotation_deg < 1e-6 && e.translation < 1e-9, "{e:?}");
     }
 }
 
@@ -124,16 +126,40 @@ fn pose_error_is_relative_to_frame_zero() {
     ];
     let pred: Vec<Mat4> = pred_local.iter().map(|p| p.mul(&world)).collect();
     let (p, g) = (relative_to_first(&pred), relative_to_first(&gt));
-    let e = pose_error(&p[1], &g[1]);
+    let e = pose_error(&p[1], &g[1], 1.0);
     assert!((e.rotation_deg - 10.0).abs() < 1e-9, "{e:?}");
     // Centres: −Rᵀt; both translations are along the z axis, which rot_z leaves alone.
-    assert!(e.translation_m < 1e-9, "{e:?}");
+    assert!(e.translation < 1e-9, "{e:?}");
     let moved = [
         Mat4::IDENTITY,
         Mat4::from_rt(rot_z(0.0), Vec3::new(3.0, 4.0, -2.0)),
     ];
-    let e = pose_error(&relative_to_first(&moved)[1], &g[1]);
-    assert!((e.translation_m - 5.0).abs() < 1e-9, "{e:?}");
+    let e = pose_error(&relative_to_first(&moved)[1], &g[1], 1.0);
+    assert!((e.translation - 5.0).abs() < 1e-9, "{e:?}");
+}
+
+/// Guards the translation scale alignment of up-to-scale cameras: a trajectory predicted at
+/// a third of the true scale is aligned with s = 3 and has zero error; a mirrored one is not
+/// rescued by a negative scale; still cameras keep s = 1.
+#[test]
+fn translation_error_is_scale_aligned() {
+    let centres = [0.0, 1.0, 2.5, 4.0];
+    let cams = |k: f64| -> Vec<Mat4> {
+        centres
+            .iter()
+            .map(|&z| Mat4::from_rt(rot_z(0.0), Vec3::new(0.0, 0.0, -z * k)))
+            .collect()
+    };
+    let (gt, small) = (cams(1.0), cams(1.0 / 3.0));
+    let s = translation_scale(&small, &gt);
+    assert!((s - 3.0).abs() < 1e-12, "{s}");
+    for (p, g) in small.iter().zip(&gt) {
+        assert!(pose_error(p, g, s).translation < 1e-12);
+    }
+    assert_eq!(translation_scale(&cams(-1.0), &gt), 0.0);
+    assert_eq!(translation_scale(&cams(0.0), &gt), 1.0);
+    // The error is in the truth's unit: centre 4 m predicted at 4/3 unscaled, aligned exact.
+    assert!((pose_error(&small[3], &gt[3], 1.0).translation - 8.0 / 3.0).abs() < 1e-12);
 }
 
 /// Guards the horizon knob of the sweep: a truncated model predicts and scores only its

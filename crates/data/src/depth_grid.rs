@@ -1,0 +1,176 @@
+//! Ground-truth depth brought onto the fitted frame grid for evaluation.
+//!
+//! LiDAR is sparse: STORM stores it on a quarter-resolution grid (`depth_flows_4`, 0 = no
+//! return) or as points. Resampling such a map with a bilinear or nearest filter would
+//! either blend real returns with the zeros of empty cells or spread one return over many
+//! pixels. Instead every measurement is moved to where it lands on the target grid: the
+//! centre of its cell (or the point itself) is unprojected with its own intrinsics,
+//! projected with the target's, and written into the pixel that contains it. Where several
+//! land in one pixel the nearest wins, as a z-buffer would (the others are occluded there).
+
+use crate::clip::DepthMap;
+use crate::geom::{Intrinsics, Vec3};
+
+/// How far two intrinsics may differ and still count as the same grid (pixels).
+const SAME_GRID_TOLERANCE: f64 = 1e-9;
+
+/// Where a frame's evaluation depth came from (reported next to D-RMSE).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum DepthSource {
+    /// A dense map on the frame grid (the synthetic layout): every pixel has truth.
+    Dense,
+    /// A sparse LiDAR map on its own grid (STORM's `depth_flows_4`), moved onto the frame grid.
+    LidarGrid,
+    /// LiDAR points projected into the frame (STORM's `lidar/*.bin`, nuScenes `LIDAR_TOP`).
+    LidarPoints,
+}
+
+impl DepthSource {
+    /// The name used in reports.
+    pub fn name(self) -> &'static str {
+        match self {
+            DepthSource::Dense => "dense",
+            DepthSource::LidarGrid => "lidar_grid",
+            DepthSource::LidarPoints => "lidar_points",
+        }
+    }
+}
+
+/// Writes z-depth `z` at continuous pixel `(x, y)` into `grid` (H·W) if it falls inside and
+/// is nearer than what the pixel holds.
+fn z_write(grid: &mut [f32], (h, w): (usize, usize), x: f64, y: f64, z: f32) {
+    if !(x >= 0.0 && y >= 0.0 && x < w as f64 && y < h as f64) {
+        return;
+    }
+    let i = y as usize * w + x as usize;
+    if grid[i] <= 0.0 || z < grid[i] {
+        grid[i] = z;
+    }
+}
+
+/// Points in the OpenCV camera frame (metres) as a z-depth map on an `(h, w)` grid with
+/// intrinsics `k`; 0 where no point lands. Points behind the camera are dropped.
+pub fn splat_points(points: &[[f32; 3]], k: &Intrinsics, size: (usize, usize)) -> Vec<f32> {
+    let mut grid = vec![0.0f32; size.0 * size.1];
+    for p in points {
+        let z = p[2];
+        if !(z > 0.0 && z.is_finite()) {
+            continue;
+        }
+        if let Some((x, y)) = k.project(Vec3::new(p[0] as f64, p[1] as f64, z as f64)) {
+            z_write(&mut grid, size, x, y, z);
+        }
+    }
+    grid
+}
+
+/// A depth map on its own grid moved onto an `(h, w)` grid with intrinsics `k` (see the
+/// module comment). A map already on that grid is copied unchanged.
+pub fn resample_map(map: &DepthMap, k: &Intrinsics, size: (usize, usize)) -> Vec<f32> {
+    let (mh, mw) = (map.map.height, map.map.width);
+    let src = &map.intrinsics;
+    let same = (mh, mw) == size
+        && [
+            (src.fx, k.fx),
+            (src.fy, k.fy),
+            (src.cx, k.cx),
+            (src.cy, k.cy),
+        ]
+        .iter()
+        .all(|(a, b)| (a - b).abs() <= SAME_GRID_TOLERANCE);
+    let channels = map.map.channels.max(1);
+    if same {
+        return (0..mh * mw).map(|i| map.map.data[i * channels]).collect();
+    }
+    let mut grid = vec![0.0f32; size.0 * size.1];
+    for v in 0..mh {
+        for u in 0..mw {
+            let z = map.map.data[(v * mw + u) * channels];
+            if !(z > 0.0 && z.is_finite()) {
+                continue;
+            }
+            let p = src.unproject(u as f64 + 0.5, v as f64 + 0.5, z as f64);
+            if let Some((x, y)) = k.project(p) {
+                z_write(&mut grid, size, x, y, z);
+            }
+        }
+    }
+    grid
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::exr_io::FloatMap;
+
+    fn k(f: f64, w: f64, h: f64) -> Intrinsics {
+        Intrinsics {
+            fx: f,
+            fy: f,
+            cx: w / 2.0,
+            cy: h / 2.0,
+        }
+    }
+
+    /// Guards the quarter-grid move: a return in quarter cell (u, v) lands in full-res pixel
+    /// (4u + 2, 4v + 2), the cell's centre, with its depth; empty cells stay empty.
+    #[test]
+    fn quarter_grid_cells_land_at_their_centres() {
+        let full = k(100.0, 16.0, 8.0);
+        let quarter = full.resized((8, 16), (2, 4));
+        let mut data = vec![0.0; 8];
+        data[5] = 7.5; // (v, u) = (1, 1)
+        let map = DepthMap {
+            map: FloatMap {
+                width: 4,
+                height: 2,
+                channels: 1,
+                data,
+            },
+            intrinsics: quarter,
+            sparse: true,
+        };
+        let grid = resample_map(&map, &full, (8, 16));
+        let hits: Vec<(usize, f32)> = grid
+            .iter()
+            .enumerate()
+            .filter(|(_, z)| **z > 0.0)
+            .map(|(i, z)| (i, *z))
+            .collect();
+        assert_eq!(hits, vec![(6 * 16 + 6, 7.5)]);
+    }
+
+    /// Guards the z-buffer: two points in one pixel keep the nearer; points behind the camera
+    /// or outside the frame are dropped.
+    #[test]
+    fn nearest_point_wins_and_invisible_points_are_dropped() {
+        let kk = k(10.0, 4.0, 4.0);
+        let pts = [
+            [0.0, 0.0, 5.0],
+            [0.0, 0.0, 3.0],
+            [0.0, 0.0, -2.0],
+            [100.0, 0.0, 1.0],
+        ];
+        let grid = splat_points(&pts, &kk, (4, 4));
+        assert_eq!(grid[2 * 4 + 2], 3.0);
+        assert_eq!(grid.iter().filter(|z| **z > 0.0).count(), 1);
+    }
+
+    /// Guards the same-grid shortcut: a dense map on the frame grid is copied bit for bit.
+    #[test]
+    fn same_grid_is_copied() {
+        let kk = k(5.0, 3.0, 2.0);
+        let data = vec![1.0, 2.0, 0.0, 4.0, 5.0, 6.0];
+        let map = DepthMap {
+            map: FloatMap {
+                width: 3,
+                height: 2,
+                channels: 1,
+                data: data.clone(),
+            },
+            intrinsics: kk,
+            sparse: false,
+        };
+        assert_eq!(resample_map(&map, &kk, (2, 3)), data);
+    }
+}
