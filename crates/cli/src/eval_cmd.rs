@@ -50,6 +50,10 @@ pub struct EvalArgs {
     /// Border crop before every metric: TOP,BOTTOM,LEFT,RIGHT (the release's main config: 6,6,10,6).
     #[arg(long, value_parser = parse_crop)]
     crop: Option<EvalCrop>,
+    /// Border crop of the cross-frame scores, TOP,BOTTOM,LEFT,RIGHT (default the release's
+    /// 6,6,10,6: backward renders leave the borders uncovered).
+    #[arg(long, value_parser = parse_crop)]
+    cross_frame_crop: Option<EvalCrop>,
     /// Scale alignment of the predicted depth before D-RMSE.
     #[arg(long, value_enum, default_value_t = AlignChoice::Median)]
     depth_align: AlignChoice,
@@ -167,7 +171,7 @@ fn parse_crop(s: &str) -> Result<EvalCrop, String> {
         .split(',')
         .map(|p| p.trim().parse::<usize>())
         .collect::<Result<_, _>>()
-        .map_err(|e| format!("--crop {s:?}: {e}; expected TOP,BOTTOM,LEFT,RIGHT"))?;
+        .map_err(|e| format!("{s:?}: {e}; expected TOP,BOTTOM,LEFT,RIGHT"))?;
     match v[..] {
         [top, bottom, left, right] => Ok(EvalCrop {
             top,
@@ -175,9 +179,7 @@ fn parse_crop(s: &str) -> Result<EvalCrop, String> {
             left,
             right,
         }),
-        _ => Err(format!(
-            "--crop {s:?}: expected 4 numbers TOP,BOTTOM,LEFT,RIGHT"
-        )),
+        _ => Err(format!("{s:?}: expected 4 numbers TOP,BOTTOM,LEFT,RIGHT")),
     }
 }
 
@@ -312,6 +314,9 @@ pub fn run(args: EvalArgs) -> Result<()> {
     let lpips = lpips_status(args.lpips_weights.as_deref(), &device)?;
     let mut opts = EvalOptions::new(cfg.context_frames, lpips);
     opts.crop = args.crop.unwrap_or_default();
+    if let Some(c) = args.cross_frame_crop {
+        opts.cross_frame_crop = c;
+    }
     opts.depth_alignment = args.depth_align.alignment();
     atomic::create_dir(&args.out).map_err(|e| InputError(e.to_string()))?;
 

@@ -4,16 +4,38 @@
 use crate::InputError;
 use anyhow::{Context, Result};
 use clap::Args;
-use envision4d_data::synth::{render_clip, write_clip, Preset, SynthConfig, DEFAULT_SUPERSAMPLE};
+use envision4d_data::synth::{
+    render_clip, write_clip, write_storm_scene, Preset, SynthConfig, DEFAULT_SUPERSAMPLE,
+};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::PathBuf;
 use std::time::Instant;
 
+/// On-disk layout of the written clips.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SynthLayout {
+    /// Ours: DIR/clip_000000/{rgb,depth,flow,dynamic_mask,instance}, cameras.json, ...
+    Synth,
+    /// STORM's preprocessed Waymo: DIR/<split>/<scene:03d>/{images,intrinsics,cam_to_ego,
+    /// ego_to_world,cam_to_world,depth_flows_4,lidar}, LiDAR-like depth included.
+    StormWaymo,
+}
+
 #[derive(Args, Debug)]
 pub struct SynthArgs {
-    /// Output folder; clips go to DIR/clip_000000, DIR/clip_000001, ...
+    /// Output folder; clips go to DIR/clip_000000, ... (or DIR/<split>/000, ... with
+    /// --layout storm-waymo).
     #[arg(long)]
     out: PathBuf,
+    /// Layout to write.
+    #[arg(long, value_enum, default_value_t = SynthLayout::Synth)]
+    layout: SynthLayout,
+    /// Split folder of the storm-waymo layout (training, validation, ...).
+    #[arg(long, default_value = "training")]
+    split: String,
+    /// Number of the first scene folder of the storm-waymo layout (to add scenes to a split).
+    #[arg(long, default_value_t = 0)]
+    first_scene: usize,
     /// Number of clips.
     #[arg(long, default_value_t = 1)]
     clips: usize,
@@ -50,6 +72,14 @@ fn parse_size(s: &str) -> Result<(usize, usize), String> {
             .ok_or_else(|| format!("bad side {v:?} in {s:?}: need an integer in 1..={MAX_SIDE}"))
     };
     Ok((side(h)?, side(w)?))
+}
+
+/// A split is one folder name, never a path.
+fn valid_split_name(s: &str) -> bool {
+    !s.is_empty()
+        && s
+            .chars()
+            .all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-')
 }
 
 fn parse_preset(s: &str) -> Result<Preset, String> {
@@ -93,10 +123,27 @@ pub fn run(args: SynthArgs) -> Result<()> {
         bar.set_style(style);
     }
     let start = Instant::now();
+    if args.layout == SynthLayout::StormWaymo && !valid_split_name(&args.split) {
+        return Err(InputError(format!(
+            "--split {:?}: need a plain folder name (letters, digits, '_' or '-')",
+            args.split
+        ))
+        .into());
+    }
     for i in 0..args.clips {
         let clip = render_clip(&cfg, i as u64, || bar.inc(1))?;
-        let dir = args.out.join(format!("clip_{i:06}"));
-        write_clip(&dir, &clip).with_context(|| format!("writing clip {}", dir.display()))?;
+        let dir = match args.layout {
+            SynthLayout::Synth => args.out.join(format!("clip_{i:06}")),
+            SynthLayout::StormWaymo => args
+                .out
+                .join(&args.split)
+                .join(format!("{:03}", args.first_scene + i)),
+        };
+        match args.layout {
+            SynthLayout::Synth => write_clip(&dir, &clip),
+            SynthLayout::StormWaymo => write_storm_scene(&dir, &clip),
+        }
+        .with_context(|| format!("writing clip {}", dir.display()))?;
     }
     bar.finish_and_clear();
     let secs = start.elapsed().as_secs_f64();

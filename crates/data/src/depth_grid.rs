@@ -36,9 +36,15 @@ impl DepthSource {
     }
 }
 
+/// Added before flooring so a centre exactly on a pixel edge (a quarter cell's centre is
+/// the corner of four full-resolution pixels) lands right and below of it, whatever the
+/// rounding of the projection; far above that rounding (~1e-13 px), far below a pixel.
+const EDGE_NUDGE_PX: f64 = 1e-6;
+
 /// Writes z-depth `z` at continuous pixel `(x, y)` into `grid` (H·W) if it falls inside and
 /// is nearer than what the pixel holds.
 fn z_write(grid: &mut [f32], (h, w): (usize, usize), x: f64, y: f64, z: f32) {
+    let (x, y) = (x + EDGE_NUDGE_PX, y + EDGE_NUDGE_PX);
     if !(x >= 0.0 && y >= 0.0 && x < w as f64 && y < h as f64) {
         return;
     }

@@ -8,6 +8,7 @@ pub mod motion;
 pub mod preset;
 pub mod road;
 pub mod shapes;
+pub mod storm_writer;
 pub mod texture;
 pub mod trace;
 pub mod world;
@@ -19,6 +20,7 @@ use crate::rng::Rng;
 use camera::Camera;
 pub use preset::{Preset, FRAME_INTERVAL_S};
 use trace::{render, FrameRender, Scene};
+pub use storm_writer::write_storm_scene;
 pub use writer::write_clip;
 
 /// Default colour samples per pixel edge (2 x 2 = 4 per pixel): enough to tame edge
