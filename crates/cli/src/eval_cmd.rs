@@ -31,6 +31,10 @@ pub struct EvalArgs {
     /// Held-out data folder (overrides the config's data.root; required without --config).
     #[arg(long)]
     data: Option<PathBuf>,
+    /// Layout of the data (overrides the config's data.layout; default without --config:
+    /// synth). `waymo` reads STORM's / the release's `<root>/validation/<scene>/images`.
+    #[arg(long, value_enum)]
+    layout: Option<LayoutChoice>,
     /// Output folder: metrics.json, metrics.md, metrics_vs_horizon.png, metrics_vs_time.png
     /// (and pareto.png with --sweep).
     #[arg(long, default_value = "eval")]
@@ -82,6 +86,24 @@ pub struct EvalArgs {
     /// context=<t,..> scored=<t,..>`, frame times from the file names), and exit.
     #[arg(long)]
     list_windows: bool,
+}
+
+/// `--layout`: the dataset layouts `eval` reads (docs/DATA.md).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+enum LayoutChoice {
+    Synth,
+    Folder,
+    Waymo,
+}
+
+impl LayoutChoice {
+    fn layout(self) -> DataLayout {
+        match self {
+            LayoutChoice::Synth => DataLayout::Synth,
+            LayoutChoice::Folder => DataLayout::Folder,
+            LayoutChoice::Waymo => DataLayout::Waymo,
+        }
+    }
 }
 
 /// A named evaluation protocol.
@@ -233,6 +255,9 @@ fn resolve(args: &EvalArgs) -> Result<Setup> {
     };
     if let Some(root) = &args.data {
         data.root = root.clone();
+    }
+    if let Some(layout) = args.layout {
+        data.layout = layout.layout();
     }
     if let Some(stride) = args.stride {
         data.stride = stride as usize;

@@ -1,0 +1,159 @@
+//! The real-data path end to end on a synthetic STORM-Waymo tree (`synth --layout
+//! storm-waymo`): training reads only `training/`, evaluation scores `validation/` with
+//! LiDAR D-RMSE, cross-frame pairs and scale-aligned pose errors.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn bin(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_envision4d"))
+        .args(args)
+        .output()
+        .expect("envision4d runs")
+}
+
+fn text(o: &Output) -> String {
+    format!(
+        "{}{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    )
+}
+
+/// Writes `frames` frames of one synthetic scene as `<root>/<split>/000`.
+fn storm_split(root: &Path, split: &str, frames: usize, seed: u64) {
+    let o = bin(&[
+        "synth",
+        "--layout",
+        "storm-waymo",
+        "--split",
+        split,
+        "--out",
+        root.to_str().unwrap(),
+        "--frames",
+        &frames.to_string(),
+        "--size",
+        "56x84",
+        "--supersample",
+        "1",
+        "--seed",
+        &seed.to_string(),
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+}
+
+/// `configs/synth-tiny.toml` on the STORM tree: random init, no distillation (the tree's
+/// LiDAR is sparse, so exact dense labels do not exist), T_f = 2, `steps` iterations.
+fn config(dir: &Path, root: &Path, steps: i64) -> PathBuf {
+    let shipped = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../configs/synth-tiny.toml");
+    let mut cfg: toml::Table = toml::from_str(&std::fs::read_to_string(shipped).unwrap()).unwrap();
+    cfg.remove("init_checkpoint");
+    cfg.insert("freeze".into(), toml::Value::Array(vec![]));
+    cfg.insert("teacher".into(), "none".into());
+    let set = |cfg: &mut toml::Table, table: &str, key: &str, v: toml::Value| {
+        cfg.get_mut(table)
+            .and_then(|t| t.as_table_mut())
+            .unwrap()
+            .insert(key.into(), v);
+    };
+    set(&mut cfg, "model", "future_frames", 2.into());
+    set(&mut cfg, "optim", "batch_size", 1.into());
+    set(&mut cfg, "optim", "iterations", steps.into());
+    set(&mut cfg, "progressive", "warmup_iterations", 2.into());
+    set(&mut cfg, "progressive", "s_max", 10.into());
+    set(&mut cfg, "data", "layout", "waymo".into());
+    set(&mut cfg, "data", "root", root.display().to_string().into());
+    set(&mut cfg, "data", "stride", 1.into());
+    let out = dir.join("run");
+    set(&mut cfg, "run", "out_dir", out.display().to_string().into());
+    set(&mut cfg, "run", "log_every", 5.into());
+    set(&mut cfg, "run", "checkpoint_every", 10.into());
+    set(&mut cfg, "run", "val_every", 10.into());
+    set(&mut cfg, "run", "val_clips", 1.into());
+    let path = dir.join("storm.toml");
+    std::fs::write(&path, toml::to_string(&cfg).unwrap()).unwrap();
+    path
+}
+
+/// Guards the training side: `--dry-run` reports the training split with its poses and
+/// LiDAR depth, a 20-step run on it finishes, and nothing of `validation/` is read (its
+/// frames are made undecodable, so reading one would be a warning or an error).
+#[test]
+fn storm_tree_trains_on_training_only() {
+    let dir = tempfile::tempdir().unwrap();
+    let root = dir.path().join("waymo");
+    storm_split(&root, "training", 10, 1);
+    storm_split(&root, "validation", 8, 2);
+    for entry in std::fs::read_dir(root.join("validation/000/images")).unwrap() {
+        std::fs::write(entry.unwrap().path(), b"not an image").unwrap();
+    }
+    let cfg = config(dir.path(), &root, 20);
+    let c = cfg.to_str().unwrap();
+    let dry = bin(&["train", "--config", c, "--dry-run"]);
+    let out = text(&dry);
+    assert!(dry.status.success(), "{out}");
+    assert!(out.contains("split \"training\""), "{out}");
+    // 9 listed timesteps (range(min, max)), windows of 4 every frame: starts 0..=5.
+    assert!(out.contains("windows: 6 from 1 scene(s), 4 frames each"), "{out}");
+    assert!(out.contains("poses yes") && out.contains("depth yes"), "{out}");
+    let run = bin(&["train", "--config", c]);
+    let out = text(&run);
+    assert!(run.status.success(), "{out}");
+    assert!(out.contains("trained 20 steps"), "{out}");
+    assert!(!out.contains("validation/000"), "training touched validation/: {out}");
+    assert!(dir.path().join("run/model.safetensors").is_file());
+}
+
+/// Guards the evaluation side on `validation/` with the release protocol: one window of the
+/// release's clips, D-RMSE of the rendered future depth against the projected LiDAR points
+/// (and of the depth head, kept apart), the cross-frame pairs 1→0 and 0→1 after the
+/// release's crop, and scale-aligned translation errors in metres.
+#[test]
+fn storm_tree_evaluates_with_lidar_and_pairs() {
+    let dir = tempfile::tempdir().unwrap();
+    let root = dir.path().join("waymo");
+    // The checkpoint predicts T_f = 6: its windows are 8 frames (9 files: range(min, max)).
+    storm_split(&root, "validation", 9, 2);
+    let ckpt = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../../models/envision4d-synth-tiny.safetensors");
+    let out = dir.path().join("eval");
+    let o = bin(&[
+        "eval",
+        "--checkpoint",
+        ckpt.to_str().unwrap(),
+        "--data",
+        root.to_str().unwrap(),
+        "--layout",
+        "waymo",
+        "--protocol",
+        "release",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    let json: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("metrics.json")).unwrap()).unwrap();
+    assert_eq!(json["clips_evaluated"], 1);
+    let clip = &json["clips"][0];
+    let depth = &clip["depth_rmse"];
+    assert_eq!(depth["source"], "lidar_points", "{depth}");
+    assert_eq!(depth["frames"], serde_json::json!([2, 3, 4, 5]));
+    assert!(depth["rmse"].as_f64().unwrap() > 0.0, "{depth}");
+    assert_eq!(clip["context_depth_rmse"]["frames"], serde_json::json!([0, 1]));
+    let pairs: Vec<(u64, u64)> = clip["context"]["pairs"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|p| (p["source"].as_u64().unwrap(), p["target"].as_u64().unwrap()))
+        .collect();
+    assert_eq!(pairs, vec![(1, 0), (0, 1)]);
+    assert_eq!(
+        json["cross_frame_crop"],
+        serde_json::json!({"top": 6, "bottom": 6, "left": 10, "right": 6})
+    );
+    assert_eq!(json["translation_unit"], "m");
+    let model = &clip["methods"][0];
+    assert!(model["trans_err"].as_f64().unwrap() >= 0.0, "{model}");
+    assert!(model["pose_scale"].as_f64().unwrap() >= 0.0, "{model}");
+    assert!(model["camera_auc30"].as_f64().is_some(), "{model}");
+}
