@@ -35,6 +35,11 @@ pub struct EvalArgs {
     /// synth). `waymo` reads STORM's / the release's `<root>/validation/<scene>/images`.
     #[arg(long, value_enum)]
     layout: Option<LayoutChoice>,
+    /// The dataset's own split to read (overrides data.split): a Waymo split folder
+    /// (default `validation`) or an official nuScenes split (default `val`; `mini_val` for
+    /// v1.0-mini). Not to be confused with --split, which picks clips within it.
+    #[arg(long)]
+    dataset_split: Option<String>,
     /// Output folder: metrics.json, metrics.md, metrics_vs_horizon.png, metrics_vs_time.png
     /// (and pareto.png with --sweep).
     #[arg(long, default_value = "eval")]
@@ -94,6 +99,7 @@ enum LayoutChoice {
     Synth,
     Folder,
     Waymo,
+    Nuscenes,
 }
 
 impl LayoutChoice {
@@ -102,6 +108,7 @@ impl LayoutChoice {
             LayoutChoice::Synth => DataLayout::Synth,
             LayoutChoice::Folder => DataLayout::Folder,
             LayoutChoice::Waymo => DataLayout::Waymo,
+            LayoutChoice::Nuscenes => DataLayout::Nuscenes,
         }
     }
 }
@@ -258,6 +265,16 @@ fn resolve(args: &EvalArgs) -> Result<Setup> {
     }
     if let Some(layout) = args.layout {
         data.layout = layout.layout();
+    }
+    if let Some(split) = &args.dataset_split {
+        if !data.has_splits() {
+            return Err(InputError(format!(
+                "--dataset-split {split:?}: layout {:?} has no named splits (waymo and nuscenes do)",
+                data.layout
+            ))
+            .into());
+        }
+        data.split = Some(split.clone());
     }
     if let Some(stride) = args.stride {
         data.stride = stride as usize;

@@ -5,7 +5,8 @@ use crate::InputError;
 use anyhow::{Context, Result};
 use clap::Args;
 use envision4d_data::synth::{
-    render_clip, write_clip, write_storm_scene, Preset, SynthConfig, DEFAULT_SUPERSAMPLE,
+    render_clip, write_clip, write_nuscenes_scenes, write_storm_scene, Preset, SynthConfig,
+    DEFAULT_SUPERSAMPLE,
 };
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::PathBuf;
@@ -19,6 +20,9 @@ pub enum SynthLayout {
     /// STORM's preprocessed Waymo: DIR/<split>/<scene:03d>/{images,intrinsics,cam_to_ego,
     /// ego_to_world,cam_to_world,depth_flows_4,lidar}, LiDAR-like depth included.
     StormWaymo,
+    /// The official nuScenes tree: DIR/samples/{CAM_FRONT,LIDAR_TOP}, DIR/v1.0-*/ tables;
+    /// clip i becomes the i-th scene of an official split (--split), LiDAR sweeps included.
+    Nuscenes,
 }
 
 #[derive(Args, Debug)]
@@ -30,10 +34,12 @@ pub struct SynthArgs {
     /// Layout to write.
     #[arg(long, value_enum, default_value_t = SynthLayout::Synth)]
     layout: SynthLayout,
-    /// Split folder of the storm-waymo layout (training, validation, ...).
-    #[arg(long, default_value = "training")]
-    split: String,
-    /// Number of the first scene folder of the storm-waymo layout (to add scenes to a split).
+    /// Split of the storm-waymo layout (a folder: default training) or of nuscenes (an
+    /// official split: mini_train (default), mini_val, train, val).
+    #[arg(long)]
+    split: Option<String>,
+    /// First scene of the split to write (storm-waymo: folder number; nuscenes: position in
+    /// the split's scene list), to add scenes to a split over several runs.
     #[arg(long, default_value_t = 0)]
     first_scene: usize,
     /// Number of clips.
@@ -77,8 +83,7 @@ fn parse_size(s: &str) -> Result<(usize, usize), String> {
 /// A split is one folder name, never a path.
 fn valid_split_name(s: &str) -> bool {
     !s.is_empty()
-        && s
-            .chars()
+        && s.chars()
             .all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-')
 }
 
@@ -123,12 +128,38 @@ pub fn run(args: SynthArgs) -> Result<()> {
         bar.set_style(style);
     }
     let start = Instant::now();
-    if args.layout == SynthLayout::StormWaymo && !valid_split_name(&args.split) {
-        return Err(InputError(format!(
-            "--split {:?}: need a plain folder name (letters, digits, '_' or '-')",
-            args.split
-        ))
-        .into());
+    let split = args.split.clone().unwrap_or_else(|| {
+        match args.layout {
+            SynthLayout::Nuscenes => "mini_train",
+            _ => "training",
+        }
+        .into()
+    });
+    match args.layout {
+        SynthLayout::StormWaymo if !valid_split_name(&split) => {
+            return Err(InputError(format!(
+                "--split {split:?}: need a plain folder name (letters, digits, '_' or '-')"
+            ))
+            .into())
+        }
+        SynthLayout::Nuscenes => {
+            let scenes = envision4d_data::layout::nuscenes_tables::split_scenes(&split)
+                .ok_or_else(|| {
+                    InputError(format!(
+                        "--split {split:?}: nuScenes splits are mini_train, mini_val, train, val, test"
+                    ))
+                })?;
+            if args.first_scene + args.clips > scenes.len() {
+                return Err(InputError(format!(
+                    "--clips {} from --first-scene {}: split {split} has {} scenes",
+                    args.clips,
+                    args.first_scene,
+                    scenes.len()
+                ))
+                .into());
+            }
+        }
+        _ => {}
     }
     for i in 0..args.clips {
         let clip = render_clip(&cfg, i as u64, || bar.inc(1))?;
@@ -136,14 +167,18 @@ pub fn run(args: SynthArgs) -> Result<()> {
             SynthLayout::Synth => args.out.join(format!("clip_{i:06}")),
             SynthLayout::StormWaymo => args
                 .out
-                .join(&args.split)
+                .join(&split)
                 .join(format!("{:03}", args.first_scene + i)),
+            SynthLayout::Nuscenes => args.out.clone(),
         };
         match args.layout {
             SynthLayout::Synth => write_clip(&dir, &clip),
             SynthLayout::StormWaymo => write_storm_scene(&dir, &clip),
+            SynthLayout::Nuscenes => {
+                write_nuscenes_scenes(&dir, &split, args.first_scene + i, &[clip])
+            }
         }
-        .with_context(|| format!("writing clip {}", dir.display()))?;
+        .with_context(|| format!("writing clip {i} into {}", dir.display()))?;
     }
     bar.finish_and_clear();
     let secs = start.elapsed().as_secs_f64();

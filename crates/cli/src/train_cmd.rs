@@ -145,7 +145,7 @@ fn describe_data(cfg: &envision4d_train::TrainConfig) -> Result<()> {
     let data = &cfg.data;
     envision4d_train::dataset::check_training_split(data)?;
     let split = match data.layout {
-        DataLayout::Waymo => format!(
+        DataLayout::Waymo | DataLayout::Nuscenes => format!(
             ", split {:?}, a window every {} frame(s), windows per scene: {}",
             data.split_for(Purpose::Train),
             data.stride,
@@ -187,7 +187,7 @@ fn describe_data(cfg: &envision4d_train::TrainConfig) -> Result<()> {
             clip.id,
             yes(has(&|g| g.intrinsics.is_some())),
             yes(has(&|g| g.world_to_camera.is_some())),
-            yes(has(&|g| g.depth.is_some())),
+            yes(has(&|g| g.depth.is_some() || g.lidar_points.is_some())),
         );
     }
     Ok(())

@@ -3,7 +3,7 @@
 
 use crate::clip::{Clip, ClipSpec};
 use crate::error::{DataError, Result};
-use crate::layout::{folder, load_clip, synth, waymo, ClipEntry, Scan};
+use crate::layout::{folder, load_clip, nuscenes, synth, waymo, ClipEntry, Scan};
 use crate::resize::Fit;
 use crate::split::{assign, Split, SplitRatios};
 use std::collections::VecDeque;
@@ -17,6 +17,8 @@ pub enum Layout {
     Folder { stride: usize },
     /// `<root>/<split>/<scene>/images/<t>_<cam>.png` (official loader / STORM).
     Waymo(waymo::WaymoConfig),
+    /// The official nuScenes tree: `samples/`, `<version>/*.json`, official scene splits.
+    NuScenes(nuscenes::NuScenesConfig),
     /// Our synthetic clips; windows every `stride` frames.
     Synth { stride: usize },
 }
@@ -108,6 +110,7 @@ impl ClipDataset {
         let Scan { entries, skipped } = match &config.layout {
             Layout::Folder { stride } => folder::scan(root, &config.spec, *stride)?,
             Layout::Waymo(cfg) => waymo::scan(root, &config.spec, cfg)?,
+            Layout::NuScenes(cfg) => nuscenes::scan(root, &config.spec, cfg)?,
             Layout::Synth { stride } => synth::scan(root, &config.spec, *stride)?,
         };
         let skips = SkipLog::default();

@@ -24,12 +24,13 @@ pub mod split;
 pub mod synth;
 
 pub use clip::{Clip, ClipSpec, DepthMap, FrameGt};
-pub use depth_grid::DepthSource;
 pub use dataset::{ClipDataset, DatasetConfig, Layout};
+pub use depth_grid::DepthSource;
 pub use error::{DataError, Result};
 pub use frame::{decode_image, Image};
 pub use geom::{Intrinsics, Mat4, Vec3};
 pub use host_clip::{hwc_to_chw, HostClip};
+pub use layout::nuscenes::NuScenesConfig;
 pub use layout::waymo::WaymoConfig;
 pub use layout::ClipEntry;
 pub use prefetch::{Prefetch, Prefetcher};

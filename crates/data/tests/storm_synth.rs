@@ -3,8 +3,7 @@
 
 use envision4d_data::synth::{render_clip, write_storm_scene, ClipRender, Preset, SynthConfig};
 use envision4d_data::{
-    ClipDataset, ClipSpec, DatasetConfig, DepthSource, Fit, FitMode, HostClip, Layout,
-    WaymoConfig,
+    ClipDataset, ClipSpec, DatasetConfig, DepthSource, Fit, FitMode, HostClip, Layout, WaymoConfig,
 };
 use std::path::Path;
 
@@ -85,8 +84,15 @@ fn storm_lidar_depth_lands_on_the_right_pixels() {
         if z > 0.0 {
             hits += 1;
             let (v, u) = (i / W, i % W);
-            assert!(v % 8 == 0 && u % 2 == 0, "return at ({v}, {u}) off the scan lines");
-            assert!((z - depth0[i]).abs() <= 1e-4 * depth0[i], "{z} vs {}", depth0[i]);
+            assert!(
+                v % 8 == 0 && u % 2 == 0,
+                "return at ({v}, {u}) off the scan lines"
+            );
+            assert!(
+                (z - depth0[i]).abs() <= 1e-4 * depth0[i],
+                "{z} vs {}",
+                depth0[i]
+            );
         }
     }
     assert!(hits > 20, "only {hits} LiDAR returns");
@@ -110,7 +116,10 @@ fn storm_lidar_depth_lands_on_the_right_pixels() {
             } else {
                 cells += 1;
                 let mean = zs.iter().sum::<f32>() / zs.len() as f32;
-                assert!((at - mean).abs() <= 1e-4 * mean, "cell ({vq}, {uq}): {at} vs {mean}");
+                assert!(
+                    (at - mean).abs() <= 1e-4 * mean,
+                    "cell ({vq}, {uq}): {at} vs {mean}"
+                );
             }
         }
     }

@@ -33,7 +33,15 @@ pub fn cross_frame(
 ) -> Result<(CrossFrameScore, f64)> {
     let tc = gt.shape()[0];
     let targets: Vec<usize> = (0..tc).collect();
-    let (ctx, secs) = timed_render(adapted, extr, intr, &targets, size, opts, Exclusion::SelfExclusive)?;
+    let (ctx, secs) = timed_render(
+        adapted,
+        extr,
+        intr,
+        &targets,
+        size,
+        opts,
+        Exclusion::SelfExclusive,
+    )?;
     let per_frame = frame_scores(&ctx, gt, opts)?;
     let mut pairs = Vec::new();
     for target in 0..tc {

@@ -49,7 +49,10 @@ pub fn depth_score(
     let (mut per_frame, mut scales) = (Vec::with_capacity(f), Vec::with_capacity(f));
     for k in 0..f {
         let one = |d: &HostDepths, what| HostDepths::new(what, d.map(k).to_vec(), [1, ch, cw]);
-        let (p, g) = (one(&pred, "predicted depth")?, one(&gt, "ground-truth depth")?);
+        let (p, g) = (
+            one(&pred, "predicted depth")?,
+            one(&gt, "ground-truth depth")?,
+        );
         if g.map(0).iter().all(|&v| v <= 0.0) {
             per_frame.push(None);
             scales.push(None);
@@ -109,7 +112,12 @@ mod tests {
         let pred = depths(vec![1.0, 2.0, 4.0, 9.0, 5.0, 5.0, 5.0, 5.0], [2, 2, 2]);
         let empty = vec![0.0f32; 4];
         // LiDAR at pixels 0, 1, 2 of frame 2: 2, 4, 10 (pixel 3 has no return).
-        let maps = vec![empty.clone(), empty.clone(), vec![2.0, 4.0, 10.0, 0.0], empty];
+        let maps = vec![
+            empty.clone(),
+            empty.clone(),
+            vec![2.0, 4.0, 10.0, 0.0],
+            empty,
+        ];
         let truth = DepthTruth {
             maps: &maps,
             source: DepthSource::LidarGrid,
@@ -129,7 +137,10 @@ mod tests {
         assert_eq!(s.per_frame.len(), 2);
         assert!(s.per_frame[1].is_none());
         assert_eq!(s.scales, vec![Some(2.0), None]);
-        assert_eq!((s.source.as_str(), s.frames.clone()), ("lidar_grid", vec![2, 3]));
+        assert_eq!(
+            (s.source.as_str(), s.frames.clone()),
+            ("lidar_grid", vec![2, 3])
+        );
     }
 
     /// Guards the degenerate case: an empty render at the LiDAR returns is scored unscaled
@@ -142,9 +153,15 @@ mod tests {
             maps: &maps,
             source: DepthSource::LidarPoints,
         };
-        let s = depth_score(&pred, &truth, &[0], EvalCrop::default(), DepthAlignment::Median)
-            .unwrap()
-            .unwrap();
+        let s = depth_score(
+            &pred,
+            &truth,
+            &[0],
+            EvalCrop::default(),
+            DepthAlignment::Median,
+        )
+        .unwrap()
+        .unwrap();
         assert_eq!((s.rmse, s.scales.clone()), (3.0, vec![Some(1.0)]));
     }
 

@@ -24,7 +24,9 @@ use burn::tensor::{Device, Tensor, TensorData};
 use envision4d_data::geom::Mat4;
 use envision4d_data::resize::resize_bilinear;
 use envision4d_data::{HostClip, Image};
-use envision4d_losses::{camera_auc30, evaluate_images, DepthAlignment, HostDepths, HostImages, ImageMetrics};
+use envision4d_losses::{
+    camera_auc30, evaluate_images, DepthAlignment, HostDepths, HostImages, ImageMetrics,
+};
 use envision4d_model::adapter::{AdaptedGaussians, Exclusion};
 use envision4d_model::scene::{predict_scene, render_views, Scene};
 use envision4d_model::Envision4d;
@@ -184,7 +186,9 @@ impl Scorer<'_> {
         let per_horizon: Vec<HorizonScore> = (0..m.psnr.len())
             .map(|k| {
                 let j = tc + k;
-                let err = errors.as_ref().map(|(p, g, s)| pose_error(&p[j], &g[j], *s));
+                let err = errors
+                    .as_ref()
+                    .map(|(p, g, s)| pose_error(&p[j], &g[j], *s));
                 HorizonScore {
                     horizon: k + 1,
                     frame: j,
@@ -256,7 +260,12 @@ fn head_depth_score(
     };
     let [_, _, hi, wi, _] = depth.dims();
     let pred: Vec<f64> = depth.into_data().iter::<f64>().collect();
-    let up = upsample_nearest(&pred[..tc * hi * wi], tc, [hi, wi], [clip.height, clip.width]);
+    let up = upsample_nearest(
+        &pred[..tc * hi * wi],
+        tc,
+        [hi, wi],
+        [clip.height, clip.width],
+    );
     let pred = HostDepths::new("predicted depth", up, [tc, clip.height, clip.width])?;
     let truth = DepthTruth {
         maps: &clip.eval_depths,
@@ -293,7 +302,16 @@ pub(crate) fn timed_render(
     exclusion: Exclusion,
 ) -> Result<(Rendered, f64)> {
     let clock = Instant::now();
-    let out = render_views(adapted, extr, intr, 0, targets, exclusion, size, &opts.raster)?;
+    let out = render_views(
+        adapted,
+        extr,
+        intr,
+        0,
+        targets,
+        exclusion,
+        size,
+        &opts.raster,
+    )?;
     sync(&out.rgb.device())?;
     let secs = clock.elapsed().as_secs_f64();
     let images = HostImages::from_tensor("rendered frames", out.rgb)?;

@@ -203,6 +203,8 @@ pub enum DataLayout {
     Synth,
     Folder,
     Waymo,
+    /// The official nuScenes tree (`samples/`, `v1.0-*/` tables, official scene splits).
+    Nuscenes,
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -218,21 +220,23 @@ pub struct DataConfig {
     pub augment: Augment,
     /// `layout = "waymo"`: the split folder read. Training defaults to `training` (every
     /// `stride`-th window of every scene); evaluation to `validation` with the release's
-    /// clips (10 per scene, starts 0, 15, …).
+    /// clips (10 per scene, starts 0, 15, …). `layout = "nuscenes"`: an official split,
+    /// `train` / `val` (v1.0-trainval), `mini_train` / `mini_val` (v1.0-mini) or `test`;
+    /// training defaults to `train`, evaluation to `val`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub split: Option<String>,
     /// Training refuses a split named like an evaluation split (validation, test) unless
     /// this is set: a run on it would train on the clips it is scored on.
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub allow_eval_split: bool,
-    /// `layout = "waymo"`: windows per scene at most (training: all; evaluation: the
-    /// release's 10).
+    /// `layout = "waymo"` / `"nuscenes"`: windows per scene at most (training: all;
+    /// evaluation: the release's 10 on Waymo, all on nuScenes).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub windows_per_scene: Option<usize>,
 }
 
 /// Split names that hold evaluation data (case-insensitive).
-pub const EVAL_SPLITS: [&str; 4] = ["validation", "val", "test", "testing"];
+pub const EVAL_SPLITS: [&str; 5] = ["validation", "val", "test", "testing", "mini_val"];
 
 /// What a dataset is opened for: the Waymo layout reads different splits and windows.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -255,20 +259,28 @@ impl DataConfig {
         }
     }
 
-    /// The split folder `purpose` reads (Waymo), with the defaults above.
+    /// The split `purpose` reads (Waymo, nuScenes), with the defaults above.
     pub fn split_for(&self, purpose: Purpose) -> String {
+        let nuscenes = self.layout == DataLayout::Nuscenes;
         self.split.clone().unwrap_or_else(|| {
-            match purpose {
-                Purpose::Train => "training",
-                Purpose::Eval => "validation",
+            match (purpose, nuscenes) {
+                (Purpose::Train, false) => "training",
+                (Purpose::Eval, false) => "validation",
+                (Purpose::Train, true) => "train",
+                (Purpose::Eval, true) => "val",
             }
             .into()
         })
     }
 
+    /// Whether the layout has named splits (`data.split`, `data.windows_per_scene`).
+    pub fn has_splits(&self) -> bool {
+        matches!(self.layout, DataLayout::Waymo | DataLayout::Nuscenes)
+    }
+
     /// Whether training would read an evaluation split (see [`EVAL_SPLITS`]).
     pub fn trains_on_eval_split(&self) -> bool {
-        self.layout == DataLayout::Waymo
+        self.has_splits()
             && !self.allow_eval_split
             && EVAL_SPLITS.contains(&self.split_for(Purpose::Train).to_lowercase().as_str())
     }

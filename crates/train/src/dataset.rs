@@ -4,7 +4,8 @@
 use crate::config::{DataConfig, DataLayout, Purpose};
 use crate::error::{Result, TrainError};
 use envision4d_data::{
-    ClipDataset, ClipSpec, DatasetConfig, Fit, FitMode, Layout, Split, SplitRatios, WaymoConfig,
+    ClipDataset, ClipSpec, DatasetConfig, Fit, FitMode, Layout, NuScenesConfig, Split, SplitRatios,
+    WaymoConfig,
 };
 use envision4d_model::ModelConfig;
 use std::path::Path;
@@ -26,6 +27,11 @@ pub fn open_dataset(
             stride: data.stride,
         },
         DataLayout::Waymo => Layout::Waymo(waymo_config(data, purpose)),
+        DataLayout::Nuscenes => Layout::NuScenes(NuScenesConfig::new(
+            &data.split_for(purpose),
+            data.stride,
+            data.windows_per_scene,
+        )),
     };
     let config = DatasetConfig {
         layout,
@@ -56,9 +62,7 @@ pub fn check_training_split(data: &DataConfig) -> Result<()> {
              (use \"training\", or set data.allow_eval_split = true to do it anyway)",
         ));
     }
-    if data.layout != DataLayout::Waymo
-        && (data.split.is_some() || data.windows_per_scene.is_some())
-    {
+    if !data.has_splits() && (data.split.is_some() || data.windows_per_scene.is_some()) {
         return Err(TrainError::invalid(
             if data.split.is_some() {
                 "data.split"
@@ -66,7 +70,7 @@ pub fn check_training_split(data: &DataConfig) -> Result<()> {
                 "data.windows_per_scene"
             },
             format!("{:?}", data.layout),
-            "applies to layout = \"waymo\" only",
+            "applies to layout = \"waymo\" or \"nuscenes\" only",
         ));
     }
     Ok(())

@@ -4,6 +4,9 @@
 //! costs one clip, not the dataset.
 
 pub mod folder;
+pub mod nuscenes;
+mod nuscenes_splits;
+pub mod nuscenes_tables;
 pub mod synth;
 pub mod waymo;
 
@@ -22,6 +25,10 @@ pub enum GtSource {
         scene_dir: PathBuf,
         camera: u32,
         timesteps: Vec<i64>,
+    },
+    /// Resolved nuScenes keyframes of the clip (poses and LiDAR paths from the tables).
+    NuScenes {
+        frames: Vec<nuscenes::NuFrame>,
     },
     /// One of our synthetic clip folders and the clip's frame indices.
     Synth {
@@ -119,6 +126,7 @@ pub fn load_clip(entry: &ClipEntry, spec: &ClipSpec, fit: &Fit) -> Result<Clip> 
             camera,
             timesteps,
         } => waymo::load_storm_gt(scene_dir, *camera, timesteps, source_size, fit)?,
+        GtSource::NuScenes { frames } => nuscenes::load_nuscenes_gt(frames, source_size, fit)?,
         GtSource::Synth { clip_dir, indices } => {
             synth::load_synth_gt(clip_dir, indices, source_size, fit)?
         }

@@ -288,16 +288,17 @@ pub fn load_storm_gt(
             }
             _ => None,
         };
-        let lidar_points = match (find_t(&scene.join("lidar"), t, ".bin"), cam_to_ego) {
-            (Some(p), Some(c2e)) => Some(read_lidar_points(&p, &c2e)?),
-            (Some(p), None) => {
-                return Err(DataError::gt(
+        let lidar_points =
+            match (find_t(&scene.join("lidar"), t, ".bin"), cam_to_ego) {
+                (Some(p), Some(c2e)) => Some(read_lidar_points(&p, &c2e)?),
+                (Some(p), None) => return Err(DataError::gt(
                     p,
-                    format!("LiDAR points without cam_to_ego/{cam}.txt to bring them into the camera"),
-                ))
-            }
-            _ => None,
-        };
+                    format!(
+                        "LiDAR points without cam_to_ego/{cam}.txt to bring them into the camera"
+                    ),
+                )),
+                _ => None,
+            };
         out.push(FrameGt {
             intrinsics: k_source.map(|k| fit.intrinsics(&k, source_size)),
             world_to_camera,
@@ -336,8 +337,14 @@ fn read_lidar_points(path: &Path, cam_to_ego: &Mat4) -> Result<Vec<[f32; 3]>> {
         .mul(&cam_to_ego.rigid_inverse());
     let mut out = Vec::with_capacity(bytes.len() / record);
     for rec in bytes.chunks_exact(record) {
-        let f = |c: usize| f32::from_le_bytes([rec[4 * c], rec[4 * c + 1], rec[4 * c + 2], rec[4 * c + 3]]);
-        let [x, y, z] = [f(LIDAR_POINT.start), f(LIDAR_POINT.start + 1), f(LIDAR_POINT.end - 1)];
+        let f = |c: usize| {
+            f32::from_le_bytes([rec[4 * c], rec[4 * c + 1], rec[4 * c + 2], rec[4 * c + 3]])
+        };
+        let [x, y, z] = [
+            f(LIDAR_POINT.start),
+            f(LIDAR_POINT.start + 1),
+            f(LIDAR_POINT.end - 1),
+        ];
         if !(x.is_finite() && y.is_finite() && z.is_finite()) {
             return Err(DataError::gt(path, "a LiDAR point is not finite"));
         }

@@ -5,6 +5,7 @@
 
 pub mod camera;
 pub mod motion;
+pub mod nuscenes_writer;
 pub mod preset;
 pub mod road;
 pub mod shapes;
@@ -18,9 +19,10 @@ use crate::error::{DataError, Result};
 use crate::layout::synth::{CameraRecord, Track, TrackState};
 use crate::rng::Rng;
 use camera::Camera;
+pub use nuscenes_writer::write_nuscenes_scenes;
 pub use preset::{Preset, FRAME_INTERVAL_S};
-use trace::{render, FrameRender, Scene};
 pub use storm_writer::write_storm_scene;
+use trace::{render, FrameRender, Scene};
 pub use writer::write_clip;
 
 /// Default colour samples per pixel edge (2 x 2 = 4 per pixel): enough to tame edge

@@ -80,9 +80,10 @@ pub fn write_storm_scene(scene_dir: &Path, clip: &ClipRender) -> Result<()> {
     for d in dirs {
         create_dir(&scene_dir.join(d))?;
     }
-    let k = clip.cameras.first().map(|c| c.intrinsics).ok_or_else(|| {
-        DataError::config("frames", 0, "a STORM scene needs at least one frame")
-    })?;
+    let k =
+        clip.cameras.first().map(|c| c.intrinsics).ok_or_else(|| {
+            DataError::config("frames", 0, "a STORM scene needs at least one frame")
+        })?;
     // Waymo order f_u f_v c_u c_v k1 k2 p1 p2 k3 (no distortion here).
     write_text(
         &scene_dir.join("intrinsics").join(format!("{CAMERA}.txt")),
@@ -101,13 +102,20 @@ pub fn write_storm_scene(scene_dir: &Path, clip: &ClipRender) -> Result<()> {
                 msg,
             }
         })?;
-        write_bytes(&scene_dir.join("images").join(format!("{t:03}_{CAMERA}.png")), &png)?;
+        write_bytes(
+            &scene_dir
+                .join("images")
+                .join(format!("{t:03}_{CAMERA}.png")),
+            &png,
+        )?;
         // OpenCV c2w = Waymo-axes c2w · OPENCV_TO_WAYMO, and ego_to_world = c2w · cam_to_ego⁻¹.
         let c2w_cv = cam.world_to_camera.rigid_inverse();
         let c2w_waymo = c2w_cv.mul(&waymo_to_cv);
         let ego_to_world = c2w_waymo.mul(&cam_to_ego.rigid_inverse());
         write_text(
-            &scene_dir.join("cam_to_world").join(format!("{t:03}_{CAMERA}.txt")),
+            &scene_dir
+                .join("cam_to_world")
+                .join(format!("{t:03}_{CAMERA}.txt")),
             &matrix_text(&c2w_waymo),
         )?;
         write_text(

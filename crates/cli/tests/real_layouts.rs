@@ -1,6 +1,6 @@
-//! The real-data path end to end on a synthetic STORM-Waymo tree (`synth --layout
-//! storm-waymo`): training reads only `training/`, evaluation scores `validation/` with
-//! LiDAR D-RMSE, cross-frame pairs and scale-aligned pose errors.
+//! The real-data paths end to end on synthetic trees in the real layouts (`synth --layout
+//! storm-waymo|nuscenes`): training reads only the training split, evaluation scores the
+//! evaluation split with LiDAR D-RMSE, cross-frame pairs and scale-aligned pose errors.
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
@@ -94,13 +94,22 @@ fn storm_tree_trains_on_training_only() {
     assert!(dry.status.success(), "{out}");
     assert!(out.contains("split \"training\""), "{out}");
     // 9 listed timesteps (range(min, max)), windows of 4 every frame: starts 0..=5.
-    assert!(out.contains("windows: 6 from 1 scene(s), 4 frames each"), "{out}");
-    assert!(out.contains("poses yes") && out.contains("depth yes"), "{out}");
+    assert!(
+        out.contains("windows: 6 from 1 scene(s), 4 frames each"),
+        "{out}"
+    );
+    assert!(
+        out.contains("poses yes") && out.contains("depth yes"),
+        "{out}"
+    );
     let run = bin(&["train", "--config", c]);
     let out = text(&run);
     assert!(run.status.success(), "{out}");
     assert!(out.contains("trained 20 steps"), "{out}");
-    assert!(!out.contains("validation/000"), "training touched validation/: {out}");
+    assert!(
+        !out.contains("validation/000"),
+        "training touched validation/: {out}"
+    );
     assert!(dir.path().join("run/model.safetensors").is_file());
 }
 
@@ -139,7 +148,10 @@ fn storm_tree_evaluates_with_lidar_and_pairs() {
     assert_eq!(depth["source"], "lidar_points", "{depth}");
     assert_eq!(depth["frames"], serde_json::json!([2, 3, 4, 5]));
     assert!(depth["rmse"].as_f64().unwrap() > 0.0, "{depth}");
-    assert_eq!(clip["context_depth_rmse"]["frames"], serde_json::json!([0, 1]));
+    assert_eq!(
+        clip["context_depth_rmse"]["frames"],
+        serde_json::json!([0, 1])
+    );
     let pairs: Vec<(u64, u64)> = clip["context"]["pairs"]
         .as_array()
         .unwrap()
@@ -156,4 +168,99 @@ fn storm_tree_evaluates_with_lidar_and_pairs() {
     assert!(model["trans_err"].as_f64().unwrap() >= 0.0, "{model}");
     assert!(model["pose_scale"].as_f64().unwrap() >= 0.0, "{model}");
     assert!(model["camera_auc30"].as_f64().is_some(), "{model}");
+}
+
+/// Guards the nuScenes path: `synth --layout nuscenes` writes `mini_train` and `mini_val`
+/// into one official-layout tree; `train --dry-run` reads `mini_train` with poses and LiDAR
+/// and refuses `mini_val`; `eval --layout nuscenes --dataset-split mini_val` scores it with
+/// LiDAR-point D-RMSE.
+#[test]
+fn nuscenes_tree_trains_on_mini_train_and_evaluates_mini_val() {
+    let dir = tempfile::tempdir().unwrap();
+    let root = dir.path().join("nuscenes");
+    for (split, frames, seed) in [("mini_train", "6", "1"), ("mini_val", "8", "2")] {
+        let o = bin(&[
+            "synth",
+            "--layout",
+            "nuscenes",
+            "--split",
+            split,
+            "--out",
+            root.to_str().unwrap(),
+            "--frames",
+            frames,
+            "--size",
+            "56x84",
+            "--supersample",
+            "1",
+            "--seed",
+            seed,
+        ]);
+        assert!(o.status.success(), "{}", text(&o));
+    }
+    let cfg = config(dir.path(), &root, 1);
+    let with = |extra: &str| {
+        let text = std::fs::read_to_string(&cfg).unwrap().replace(
+            "layout = \"waymo\"",
+            &format!("layout = \"nuscenes\"\n{extra}"),
+        );
+        let p = dir.path().join("nu.toml");
+        std::fs::write(&p, text).unwrap();
+        p
+    };
+    let dry = bin(&[
+        "train",
+        "--config",
+        with("split = \"mini_train\"").to_str().unwrap(),
+        "--dry-run",
+    ]);
+    let out = text(&dry);
+    assert!(dry.status.success(), "{out}");
+    assert!(out.contains("split \"mini_train\""), "{out}");
+    // 6 keyframes, windows of 4 every frame: 3, from scene-0061.
+    assert!(
+        out.contains("windows: 3 from 1 scene(s), 4 frames each"),
+        "{out}"
+    );
+    assert!(
+        out.contains("poses yes") && out.contains("depth yes"),
+        "{out}"
+    );
+    let dry = bin(&[
+        "train",
+        "--config",
+        with("split = \"mini_val\"").to_str().unwrap(),
+        "--dry-run",
+    ]);
+    assert_eq!(dry.status.code(), Some(2), "{}", text(&dry));
+    assert!(text(&dry).contains("data.split"), "{}", text(&dry));
+
+    let ckpt = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../../models/envision4d-synth-tiny.safetensors");
+    let out = dir.path().join("eval");
+    // The checkpoint predicts T_f = 6 (8-frame windows; mini_val has 8 keyframes).
+    let o = bin(&[
+        "eval",
+        "--checkpoint",
+        ckpt.to_str().unwrap(),
+        "--data",
+        root.to_str().unwrap(),
+        "--layout",
+        "nuscenes",
+        "--dataset-split",
+        "mini_val",
+        "--protocol",
+        "paper",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    let json: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("metrics.json")).unwrap()).unwrap();
+    assert_eq!(json["clips"][0]["clip"], "mini_val/scene-0103#0");
+    assert_eq!(json["clips"][0]["depth_rmse"]["source"], "lidar_points");
+    assert_eq!(
+        json["clips"][0]["depth_rmse"]["frames"],
+        serde_json::json!([2, 3])
+    );
 }
