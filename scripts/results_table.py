@@ -23,7 +23,7 @@ def main(args):
         for x in m["methods"]:
             auc = x.get("camera_auc30")
             print(f"| {label} | {NAMES.get(x['method'], x['method'])} | {fmt(x['psnr'], 2)} | "
-                  f"{fmt(x['ssim'], 4)} | {fmt(x['rot_err_deg'], 2)} | {fmt(x['trans_err_m'], 3)} | "
+                  f"{fmt(x['ssim'], 4)} | {fmt(x['rot_err_deg'], 2)} | {fmt(x['trans_err'], 3)} | "
                   f"{fmt(None if auc is None else 100 * auc, 1)} | {fmt(x['time_s'], 3)} |")
 
 

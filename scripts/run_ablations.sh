@@ -1,11 +1,11 @@
 #!/usr/bin/env bash
-# Trains the five small-scale ablation variants (configs/ablation/*.toml, 400 steps each from
+# Trains the eight small-scale ablation variants (configs/ablation/*.toml, 400 steps each from
 # the stage-1 backbone) and evaluates each on the held-out synthetic clips; writes
 # runs/ablation-summary.md. Needs runs/synth-backbone/model.safetensors and
-# data/synth-heldout (docs/TRAINING.md). About 30 minutes on a 2-core CPU.
+# data/synth-heldout (docs/TRAINING.md). About 50 minutes on a 2-core CPU.
 set -euo pipefail
 BIN=${ENVISION4D:-target/release/envision4d}
-VARIANTS=${VARIANTS:-"paper linear-velocity post-layer no-warmup no-progressive"}
+VARIANTS=${VARIANTS:-"paper linear-velocity-no-temporal linear-velocity no-temporal post-layer no-progressive no-warmup no-warmup-no-progressive"}
 for v in $VARIANTS; do
   if [ ! -f "runs/ablation-$v/model.safetensors" ]; then
     "$BIN" train --config "configs/ablation/$v.toml"
@@ -23,7 +23,7 @@ for v in sys.argv[1].split():
     ctx = m["context"]
     f = lambda x, d: "n/a" if x is None else f"{x:.{d}f}"
     rows.append(f"| {v} | {f(model['psnr'],2)} | {f(model['ssim'],4)} | {f(model['rot_err_deg'],2)} | "
-                f"{f(model['trans_err_m'],3)} | {f(ctx['psnr'],2)} |")
+                f"{f(model['trans_err'],3)} | {f(ctx['psnr'],2)} |")
 open("runs/ablation-summary.md", "w").write("\n".join(rows) + "\n")
 print("\n".join(rows))
 PY

@@ -60,7 +60,8 @@ pub struct EvalArgs {
     #[arg(long, value_parser = parse_crop)]
     crop: Option<EvalCrop>,
     /// Border crop of the cross-frame scores, TOP,BOTTOM,LEFT,RIGHT (default the release's
-    /// 6,6,10,6: backward renders leave the borders uncovered).
+    /// 6,6,10,6 at 350x518, scaled to the image size: backward renders leave the borders
+    /// uncovered).
     #[arg(long, value_parser = parse_crop)]
     cross_frame_crop: Option<EvalCrop>,
     /// Scale alignment of the predicted depth before D-RMSE.
@@ -356,9 +357,9 @@ pub fn run(args: EvalArgs) -> Result<()> {
     let lpips = lpips_status(args.lpips_weights.as_deref(), &device)?;
     let mut opts = EvalOptions::new(cfg.context_frames, lpips);
     opts.crop = args.crop.unwrap_or_default();
-    if let Some(c) = args.cross_frame_crop {
-        opts.cross_frame_crop = c;
-    }
+    opts.cross_frame_crop = args
+        .cross_frame_crop
+        .unwrap_or_else(|| EvalOptions::release_cross_frame_crop(cfg.image_size));
     opts.depth_alignment = args.depth_align.alignment();
     atomic::create_dir(&args.out).map_err(|e| InputError(e.to_string()))?;
 

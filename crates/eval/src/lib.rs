@@ -56,7 +56,8 @@ pub struct EvalOptions {
     pub context_frames: usize,
     /// Pixels removed from every future image (and depth map) before the metrics.
     pub crop: EvalCrop,
-    /// Pixels removed before the cross-frame scores (the paper's boundary crop).
+    /// Pixels removed before the cross-frame scores (the paper's boundary crop; see
+    /// [`EvalOptions::release_cross_frame_crop`]).
     pub cross_frame_crop: EvalCrop,
     /// LPIPS network, or the reason it is not reported.
     pub lpips: LpipsStatus,
@@ -71,6 +72,12 @@ pub struct EvalOptions {
 }
 
 impl EvalOptions {
+    /// The cross-frame crop for clips of `size` `[H, W]`: the release's `6, 6, 10, 6` pixels,
+    /// given for 350x518, scaled to the clip size (`EvalCrop::scaled_to`).
+    pub fn release_cross_frame_crop(size: [usize; 2]) -> EvalCrop {
+        EvalCrop::RELEASE_MAIN.scaled_to(size)
+    }
+
     /// The paper's protocol: no crop of the future frames, the release's crop for the
     /// cross-frame scores, default rasterizer, median depth alignment, full extent.
     pub fn new(context_frames: usize, lpips: LpipsStatus) -> Self {

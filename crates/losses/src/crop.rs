@@ -43,6 +43,23 @@ impl EvalCrop {
         }
     }
 
+    /// The size `[H, W]` the release's crops are given for (its `load_size`).
+    pub const RELEASE_SIZE: [usize; 2] = [350, 518];
+
+    /// The same border fractions on an image of `size` `[H, W]`: each side scaled by the
+    /// size ratio to [`Self::RELEASE_SIZE`] and rounded (at 350x518 the crop is unchanged;
+    /// at 56x84 the release's 6,6,10,6 becomes 1,1,2,1 rather than a quarter of the image).
+    pub fn scaled_to(&self, size: [usize; 2]) -> Self {
+        let [rh, rw] = Self::RELEASE_SIZE;
+        let s = |v: usize, n: usize, r: usize| (v as f64 * n as f64 / r as f64).round() as usize;
+        Self {
+            top: s(self.top, size[0], rh),
+            bottom: s(self.bottom, size[0], rh),
+            left: s(self.left, size[1], rw),
+            right: s(self.right, size[1], rw),
+        }
+    }
+
     /// True when nothing is removed.
     pub fn is_none(&self) -> bool {
         *self == Self::default()

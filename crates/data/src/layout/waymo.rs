@@ -288,17 +288,18 @@ pub fn load_storm_gt(
             }
             _ => None,
         };
-        let lidar_points =
-            match (find_t(&scene.join("lidar"), t, ".bin"), cam_to_ego) {
-                (Some(p), Some(c2e)) => Some(read_lidar_points(&p, &c2e)?),
-                (Some(p), None) => return Err(DataError::gt(
+        let lidar_points = match (find_t(&scene.join("lidar"), t, ".bin"), cam_to_ego) {
+            (Some(p), Some(c2e)) => Some(read_lidar_points(&p, &c2e)?),
+            (Some(p), None) => {
+                return Err(DataError::gt(
                     p,
                     format!(
                         "LiDAR points without cam_to_ego/{cam}.txt to bring them into the camera"
                     ),
-                )),
-                _ => None,
-            };
+                ))
+            }
+            _ => None,
+        };
         out.push(FrameGt {
             intrinsics: k_source.map(|k| fit.intrinsics(&k, source_size)),
             world_to_camera,

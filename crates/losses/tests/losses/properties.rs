@@ -62,6 +62,32 @@ fn crop_is_applied_consistently() {
     );
 }
 
+/// Guards the scaled release crop: unchanged at the release's 350x518, the same border
+/// fractions (rounded) at other sizes, so a small image keeps most of its pixels.
+#[test]
+fn release_crop_scales_with_the_image() {
+    let c = EvalCrop::RELEASE_MAIN;
+    assert_eq!(c.scaled_to([350, 518]), c);
+    assert_eq!(
+        c.scaled_to([56, 84]),
+        EvalCrop {
+            top: 1,
+            bottom: 1,
+            left: 2,
+            right: 1
+        }
+    );
+    assert_eq!(
+        c.scaled_to([700, 1036]),
+        EvalCrop {
+            top: 12,
+            bottom: 12,
+            left: 20,
+            right: 12
+        }
+    );
+}
+
 /// Guards metrics without LPIPS weights: no LPIPS number is produced.
 #[test]
 fn evaluation_without_lpips_reports_none() {

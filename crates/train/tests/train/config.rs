@@ -28,7 +28,13 @@ fn shipped_configs_parse_paper_values() {
         (n.optim, n.loss.clone(), n.progressive),
         (c.optim, c.loss, c.progressive)
     );
-    assert_eq!(n.model.image_size, [294, 518]);
+    // §4.1: every dataset's frames are resized to 350x518; the official nuScenes tree, `train`.
+    assert_eq!(n.model.image_size, [350, 518]);
+    assert_eq!(
+        n.data.layout,
+        envision4d_train::config::DataLayout::Nuscenes
+    );
+    assert_eq!(n.data.split.as_deref(), Some("train"));
     let t = envision4d_train::load(&config_path("synth-tiny.toml")).unwrap();
     assert_eq!(t.model.image_size, [56, 84]);
     assert_eq!(t.model.depth, 4);
@@ -56,10 +62,13 @@ fn shipped_configs_parse_paper_values() {
     assert_eq!(four.model.future_iterations, 4);
     for v in [
         "paper",
+        "linear-velocity-no-temporal",
         "linear-velocity",
+        "no-temporal",
         "post-layer",
-        "no-warmup",
         "no-progressive",
+        "no-warmup",
+        "no-warmup-no-progressive",
     ] {
         envision4d_train::load(&config_path(&format!("ablation/{v}.toml"))).unwrap();
     }
@@ -215,4 +224,90 @@ fn ablation_edited_after_parse_is_refused() {
         err.contains("ablation") && err.contains("motion_model"),
         "{err}"
     );
+}
+
+/// Guards the ablation coverage: every row of the paper's Tab. 3 and of its appendix table
+/// of the progressive strategy has a config in `configs/ablation/` with exactly that row's
+/// switches (a renamed or edited config would silently stop reproducing its row).
+#[test]
+fn ablation_configs_cover_every_paper_row() {
+    use envision4d_train::config::{MotionModel as M, Switch, TemporalAttention as T};
+    let (on, off) = (Switch::On, Switch::Off);
+    let rows = [
+        (
+            "Tab. 3 row 1: FP, linear velocity",
+            "linear-velocity-no-temporal",
+            M::LinearVelocity,
+            T::None,
+            on,
+            on,
+        ),
+        (
+            "Tab. 3 row 2: + CML",
+            "no-temporal",
+            M::Lifting,
+            T::None,
+            on,
+            on,
+        ),
+        (
+            "Tab. 3 row 3: + post-layer TAttn",
+            "post-layer",
+            M::Lifting,
+            T::PostLayer,
+            on,
+            on,
+        ),
+        (
+            "Tab. 3 row 4 = appendix row 1: no Prog. Train",
+            "no-warmup-no-progressive",
+            M::Lifting,
+            T::InLayer,
+            off,
+            off,
+        ),
+        (
+            "Tab. 3 row 5 = appendix row 4: the paper",
+            "paper",
+            M::Lifting,
+            T::InLayer,
+            on,
+            on,
+        ),
+        (
+            "appendix row 2: warm-up only",
+            "no-progressive",
+            M::Lifting,
+            T::InLayer,
+            on,
+            off,
+        ),
+        (
+            "appendix row 3: weighting only",
+            "no-warmup",
+            M::Lifting,
+            T::InLayer,
+            off,
+            on,
+        ),
+    ];
+    for (row, file, motion, temporal, warmup, weighting) in rows {
+        let c = envision4d_train::load(&config_path(&format!("ablation/{file}.toml"))).unwrap();
+        let a = &c.ablation;
+        assert_eq!(
+            (
+                a.motion,
+                a.temporal_attention,
+                a.warmup,
+                a.progressive_weighting
+            ),
+            (motion, temporal, warmup, weighting),
+            "{row}: configs/ablation/{file}.toml"
+        );
+        assert_eq!(
+            c.run.out_dir,
+            Path::new(&format!("runs/ablation-{file}")),
+            "{row}"
+        );
+    }
 }
