@@ -89,7 +89,7 @@ pub struct EvalArgs {
     #[arg(long, value_enum)]
     protocol: Option<Protocol>,
     /// Print each window that would be scored, one line each (`<scene> start=<t0>
-    /// context=<t,..> scored=<t,..>`, frame times from the file names), and exit.
+    /// context=<t,..> scored=<t,..>`, frame numbers as the source numbers them), and exit.
     #[arg(long)]
     list_windows: bool,
 }
@@ -396,21 +396,7 @@ pub fn run(args: EvalArgs) -> Result<()> {
 /// the window where a name has none. `scored` is the first `future` frames after the
 /// context (with `--future N` the window stays as long as the checkpoint's, as scored).
 fn window_line(entry: &envision4d_data::ClipEntry, context: usize, future: usize) -> String {
-    let times: Vec<String> = entry
-        .frames
-        .iter()
-        .enumerate()
-        .map(|(k, p)| {
-            let stem = p
-                .file_stem()
-                .map(|s| s.to_string_lossy())
-                .unwrap_or_default();
-            let digits: String = stem.chars().take_while(char::is_ascii_digit).collect();
-            digits
-                .parse::<u64>()
-                .map_or_else(|_| k.to_string(), |t| t.to_string())
-        })
-        .collect();
+    let times: Vec<String> = entry.frame_numbers.iter().map(i64::to_string).collect();
     let (ctx, rest) = times.split_at(context.min(times.len()));
     let scored = &rest[..future.min(rest.len())];
     format!(

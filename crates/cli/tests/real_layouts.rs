@@ -76,7 +76,7 @@ fn config(dir: &Path, root: &Path, steps: i64) -> PathBuf {
 }
 
 /// Guards the training side: `--dry-run` reports the training split with its poses and
-/// LiDAR depth, a 20-step run on it finishes, and nothing of `validation/` is read (its
+/// LiDAR depth and refuses `split = "validation"`, a 20-step run on it finishes, and nothing of `validation/` is read (its
 /// frames are made undecodable, so reading one would be a warning or an error).
 #[test]
 fn storm_tree_trains_on_training_only() {
@@ -102,6 +102,17 @@ fn storm_tree_trains_on_training_only() {
         out.contains("poses yes") && out.contains("depth yes"),
         "{out}"
     );
+    // The same tree with split = "validation" is refused, naming the key.
+    let bad = dir.path().join("bad.toml");
+    let toml_text = std::fs::read_to_string(&cfg).unwrap();
+    std::fs::write(
+        &bad,
+        toml_text.replace("[data]\n", "[data]\nsplit = \"validation\"\n"),
+    )
+    .unwrap();
+    let refused = bin(&["train", "--config", bad.to_str().unwrap(), "--dry-run"]);
+    assert_eq!(refused.status.code(), Some(2), "{}", text(&refused));
+    assert!(text(&refused).contains("data.split"), "{}", text(&refused));
     let run = bin(&["train", "--config", c]);
     let out = text(&run);
     assert!(run.status.success(), "{out}");
@@ -113,8 +124,8 @@ fn storm_tree_trains_on_training_only() {
     assert!(dir.path().join("run/model.safetensors").is_file());
 }
 
-/// Guards the evaluation side on `validation/` with the release protocol: one window of the
-/// release's clips, D-RMSE of the rendered future depth against the projected LiDAR points
+/// Guards the evaluation side on `validation/` with the release protocol: `--list-windows`
+/// of `release` (4 scored frames) and `paper` (2), one window of the release's clips, D-RMSE of the rendered future depth against the projected LiDAR points
 /// (and of the depth head, kept apart), the cross-frame pairs 1→0 and 0→1 after the
 /// release's crop (scaled to the frame size), and scale-aligned translation errors in metres.
 #[test]
@@ -126,6 +137,30 @@ fn storm_tree_evaluates_with_lidar_and_pairs() {
     let ckpt = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
         .join("../../models/envision4d-synth-tiny.safetensors");
     let out = dir.path().join("eval");
+    let list = |protocol: &str| {
+        let o = bin(&[
+            "eval",
+            "--checkpoint",
+            ckpt.to_str().unwrap(),
+            "--data",
+            root.to_str().unwrap(),
+            "--layout",
+            "waymo",
+            "--protocol",
+            protocol,
+            "--list-windows",
+        ]);
+        assert!(o.status.success(), "{}", text(&o));
+        String::from_utf8_lossy(&o.stdout).into_owned()
+    };
+    assert_eq!(
+        list("release"),
+        "validation/000 start=0 context=0,1 scored=2,3,4,5\n"
+    );
+    assert_eq!(
+        list("paper"),
+        "validation/000 start=0 context=0,1 scored=2,3\n"
+    );
     let o = bin(&[
         "eval",
         "--checkpoint",

@@ -62,6 +62,7 @@ pub fn scan(root: &Path, spec: &ClipSpec, stride: usize) -> Result<Scan> {
                 id: format!("{name}@{s}"),
                 group: name.clone(),
                 frames: frames[s..s + spec.num_frames()].to_vec(),
+                frame_numbers: (s..s + spec.num_frames()).map(|k| k as i64).collect(),
                 gt: GtSource::None,
             });
         }

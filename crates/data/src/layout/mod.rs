@@ -45,6 +45,9 @@ pub struct ClipEntry {
     /// Clips of one video/scene share a group, so splits never leak a scene across them.
     pub group: String,
     pub frames: Vec<PathBuf>,
+    /// Each frame's number in its source: the Waymo timestep, the synthetic frame index, the
+    /// position in a folder or a nuScenes scene's keyframe index (what `--list-windows` shows).
+    pub frame_numbers: Vec<i64>,
     pub gt: GtSource,
 }
 

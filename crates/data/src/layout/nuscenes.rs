@@ -117,9 +117,24 @@ pub fn scan(root: &Path, spec: &ClipSpec, cfg: &NuScenesConfig) -> Result<Scan> 
     };
     let dir = root.join(version);
     if !dir.is_dir() {
-        return Err(DataError::gt(
-            &dir,
-            format!("split {:?} needs the {version} tables here", cfg.split),
+        let found: Vec<String> = super::read_dir_sorted(root)
+            .unwrap_or_default()
+            .iter()
+            .filter_map(|p| p.file_name()?.to_str().map(str::to_owned))
+            .filter(|n| n.starts_with("v1.0-"))
+            .collect();
+        return Err(DataError::config(
+            "split",
+            &cfg.split,
+            format!(
+                "needs the {version} tables in {}; found {}",
+                root.display(),
+                if found.is_empty() {
+                    "no v1.0-* folder".to_owned()
+                } else {
+                    found.join(", ")
+                }
+            ),
         ));
     }
     let index = load_index(&dir, &[cfg.camera.as_str(), LIDAR_CHANNEL])?;
@@ -208,6 +223,7 @@ fn scene_clips(
                 id: format!("{}/{}#{k}", cfg.split, scene.name),
                 group: format!("{}/{}", cfg.split, scene.name),
                 frames: window.iter().map(|(p, _)| p.clone()).collect(),
+                frame_numbers: (s..s + spec.num_frames()).map(|k| k as i64).collect(),
                 gt: GtSource::NuScenes {
                     frames: window.iter().map(|(_, g)| g.clone()).collect(),
                 },

@@ -159,6 +159,7 @@ pub fn scan(root: &Path, spec: &ClipSpec, stride: usize) -> Result<Scan> {
                 id: format!("{name}@{s}"),
                 group: name.clone(),
                 frames: window.iter().map(|(_, p)| p.clone()).collect(),
+                frame_numbers: window.iter().map(|(t, _)| *t as i64).collect(),
                 gt: GtSource::Synth {
                     clip_dir: dir.clone(),
                     indices: window.iter().map(|(t, _)| *t).collect(),

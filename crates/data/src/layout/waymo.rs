@@ -162,6 +162,7 @@ fn scene_clips(
             id: format!("{}/{name}#{k}", cfg.split),
             group: format!("{}/{name}", cfg.split),
             frames: ts.iter().map(|&t| path_of(t)).collect(),
+            frame_numbers: ts.clone(),
             gt: if has_gt {
                 GtSource::Storm {
                     scene_dir: scene_dir.to_path_buf(),
