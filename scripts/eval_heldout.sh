@@ -16,6 +16,7 @@ BIN=${ENVISION4D:-target/release/envision4d}
 for d in data/synth-heldout data/synth-heldout-mix data/synth-heldout-long; do
   [ -d "$d" ] || { echo "held-out set missing: $d (see docs/RESULTS.md)" >&2; exit 2; }
 done
+mkdir -p runs/eval
 declare -A SETS=([urban]="--data data/synth-heldout" [mix]="--data data/synth-heldout-mix"
                  [long]="--data data/synth-heldout-long --stride 2")
 tables=()

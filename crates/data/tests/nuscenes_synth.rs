@@ -93,7 +93,7 @@ fn nuscenes_lidar_lands_on_its_pixels() {
             if z > 0.0 {
                 hits += 1;
                 assert!(
-                    (i / W) % 8 == 0 && (i % W) % 2 == 0,
+                    (i / W).is_multiple_of(8) && (i % W).is_multiple_of(2),
                     "pixel {i} off the scan lines"
                 );
                 assert!(
