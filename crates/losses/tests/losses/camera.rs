@@ -125,6 +125,23 @@ fn pair_translation_is_seen_from_the_first_camera() {
     assert!((e12.rotation_deg - 90.0).abs() < 1e-6, "{e12:?}");
 }
 
+/// Guards the identical-camera case: a pair of equal, not quite orthonormal cameras (f32
+/// predictions) has no translation, so its direction error is 90°, not the 0° the rounding
+/// residue of `E·E⁻¹` would give (which scored a copy-last baseline AUC 100).
+#[test]
+fn identical_cameras_have_no_translation_direction() {
+    // Rotation scaled by (1 + 1e-7), as float32 round-off leaves it, and a translation.
+    let k = 1.0 + 1e-7;
+    let (s, c) = (0.3f64.sin() * k, 0.3f64.cos() * k);
+    let p1 = [[c, -s, 0.0, 0.1], [s, c, 0.0, 0.2], [0.0, 0.0, k, -1.3]];
+    let g = |z: f64| rz(0.0, [0.0, 0.0, -z]);
+    let pred = vec![rz(0.0, [0.0; 3]), p1, p1];
+    let gt = vec![g(0.0), g(0.1), g(1.3)];
+    let errs = relative_pose_errors(&pred, &gt).unwrap();
+    let e12 = errs.iter().find(|e| (e.i, e.j) == (1, 2)).unwrap();
+    assert!((e12.translation_deg - 90.0).abs() < 1e-6, "{e12:?}");
+}
+
 /// Guards invalid pose input: NaN, one frame, mismatched counts.
 #[test]
 fn bad_pose_inputs_are_errors() {
