@@ -15,8 +15,9 @@ def fmt(x, digits):
 
 
 def main(args):
-    print("| run | method | PSNR (dB) | SSIM | rot err (deg) | trans err (m) | AUC@30 | time (s/clip) |")
-    print("|---|---|---|---|---|---|---|---|")
+    print("| run | method | PSNR (dB) | SSIM | rot err (deg) | trans err, scale-aligned (m) | "
+          "trans err, unaligned (m) | AUC@30 | time (s/clip) |")
+    print("|---|---|---|---|---|---|---|---|---|")
     for arg in args:
         label, path = arg.rsplit("=", 1)
         m = json.load(open(f"{path}/metrics.json"))["mean"]
@@ -24,6 +25,7 @@ def main(args):
             auc = x.get("camera_auc30")
             print(f"| {label} | {NAMES.get(x['method'], x['method'])} | {fmt(x['psnr'], 2)} | "
                   f"{fmt(x['ssim'], 4)} | {fmt(x['rot_err_deg'], 2)} | {fmt(x['trans_err'], 3)} | "
+                  f"{fmt(x.get('trans_err_unaligned'), 3)} | "
                   f"{fmt(None if auc is None else 100 * auc, 1)} | {fmt(x['time_s'], 3)} |")
 
 

@@ -189,6 +189,9 @@ impl Scorer<'_> {
                 let err = errors
                     .as_ref()
                     .map(|(p, g, s)| pose_error(&p[j], &g[j], *s));
+                let raw = errors
+                    .as_ref()
+                    .map(|(p, g, _)| pose_error(&p[j], &g[j], 1.0));
                 HorizonScore {
                     horizon: k + 1,
                     frame: j,
@@ -197,6 +200,7 @@ impl Scorer<'_> {
                     lpips: lpips_at(&m, k),
                     rot_err_deg: err.map(|e| e.rotation_deg),
                     trans_err: err.map(|e| e.translation),
+                    trans_err_unaligned: raw.map(|e| e.translation),
                 }
             })
             .collect();
@@ -215,6 +219,7 @@ impl Scorer<'_> {
             lpips: mean_opt(per_horizon.iter().map(|h| h.lpips)),
             rot_err_deg: mean_opt(per_horizon.iter().map(|h| h.rot_err_deg)),
             trans_err: mean_opt(per_horizon.iter().map(|h| h.trans_err)),
+            trans_err_unaligned: mean_opt(per_horizon.iter().map(|h| h.trans_err_unaligned)),
             pose_scale: errors.as_ref().map(|e| e.2),
             camera_auc30: auc,
             time_s,

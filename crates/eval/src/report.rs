@@ -44,6 +44,10 @@ pub struct HorizonScore {
     pub rot_err_deg: Option<f64>,
     /// Camera-centre error after the clip's scale alignment, ground-truth unit (metres).
     pub trans_err: Option<f64>,
+    /// The same without scale alignment, in the model's own unit (metres for a model
+    /// trained against metric labels). The only one that sees motion predicted where the
+    /// truth stands still: there the fitted scale is 0 and `trans_err` is 0 for anything.
+    pub trans_err_unaligned: Option<f64>,
 }
 
 /// One method's future frames on one clip (or the mean over clips).
@@ -56,6 +60,7 @@ pub struct MethodScore {
     pub lpips: Option<f64>,
     pub rot_err_deg: Option<f64>,
     pub trans_err: Option<f64>,
+    pub trans_err_unaligned: Option<f64>,
     /// The scale applied to the predicted camera centres before `trans_err`.
     pub pose_scale: Option<f64>,
     /// Over all `T_c + T_f` cameras; `None` without ground-truth poses.
@@ -277,6 +282,7 @@ fn mean_method(method: Method, all: &[&MethodScore]) -> MethodScore {
                 lpips: mean_opt(at.iter().map(|h| h.lpips)),
                 rot_err_deg: mean_opt(at.iter().map(|h| h.rot_err_deg)),
                 trans_err: mean_opt(at.iter().map(|h| h.trans_err)),
+                trans_err_unaligned: mean_opt(at.iter().map(|h| h.trans_err_unaligned)),
             }
         })
         .collect();
@@ -287,6 +293,7 @@ fn mean_method(method: Method, all: &[&MethodScore]) -> MethodScore {
         lpips: mean_opt(all.iter().map(|m| m.lpips)),
         rot_err_deg: mean_opt(all.iter().map(|m| m.rot_err_deg)),
         trans_err: mean_opt(all.iter().map(|m| m.trans_err)),
+        trans_err_unaligned: mean_opt(all.iter().map(|m| m.trans_err_unaligned)),
         pose_scale: mean_opt(all.iter().map(|m| m.pose_scale)),
         camera_auc30: mean_opt(all.iter().map(|m| m.camera_auc30)),
         time_s: mean(all.iter().map(|m| m.time_s)),
