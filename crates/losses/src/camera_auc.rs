@@ -170,7 +170,10 @@ fn inverse_se3(m: &DMat4) -> DMat4 {
 fn relative(a: &DMat4, b: &DMat4) -> (DMat3, DVec3) {
     let m = *a * inverse_se3(b);
     let centre = |e: &DMat4| inverse_se3(e).w_axis.truncate();
-    (DMat3::from_mat4(m), DMat3::from_mat4(*a) * (centre(b) - centre(a)))
+    (
+        DMat3::from_mat4(m),
+        DMat3::from_mat4(*a) * (centre(b) - centre(a)),
+    )
 }
 
 fn rotation_error_deg(gt: &DMat3, pred: &DMat3) -> f64 {
