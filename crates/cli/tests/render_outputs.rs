@@ -73,8 +73,10 @@ fn inputs() -> &'static Inputs {
         // 1.5e-3 round-trip difference, most likely a Gaussian on the 1/255 alpha cut-off
         // that the PLY's f32 logit opacity flips in or out of a pixel.
         let device = Device::flex();
-        device.seed(2024);
-        let mut model = Envision4d::new(&cfg, &device);
+        let mut model = envision4d_model::seeded::seeded(&device, 2024, || {
+            Ok::<_, std::convert::Infallible>(Envision4d::new(&cfg, &device))
+        })
+        .unwrap();
         envision4d_train::step::identity_pose_init(&mut model);
         let ckpt = dir.join("tiny.safetensors");
         save_checkpoint(&model, &cfg, &ckpt).unwrap();

@@ -23,11 +23,15 @@ fn clip() -> ClipRender {
     render_clip(&cfg, 0, || {}).unwrap()
 }
 
-fn open(root: &Path) -> ClipDataset {
+/// The training split's windows, with the LiDAR points read or not.
+fn open_with(root: &Path, lidar_points: bool) -> ClipDataset {
     ClipDataset::open(
         root,
         DatasetConfig {
-            layout: Layout::Waymo(WaymoConfig::training("training", 1, None)),
+            layout: Layout::Waymo(WaymoConfig {
+                lidar_points,
+                ..WaymoConfig::training("training", 1, None)
+            }),
             spec: ClipSpec {
                 context: 2,
                 future: 2,
@@ -41,6 +45,10 @@ fn open(root: &Path) -> ClipDataset {
         },
     )
     .unwrap()
+}
+
+fn open(root: &Path) -> ClipDataset {
+    open_with(root, true)
 }
 
 /// Guards the STORM writer and reader together: camera poses (through ego_to_world,
@@ -68,7 +76,8 @@ fn storm_scene_poses_decode_to_the_truth() {
 }
 
 /// Guards LiDAR depth on the frame grid: points land on the pixel they were taken from with
-/// its exact z-depth; without `lidar/`, the quarter-grid means land at the cell centres.
+/// its exact z-depth; without `lidar/` (or with the points not read, as training does), the
+/// quarter-grid means land at the cell centres.
 #[test]
 fn storm_lidar_depth_lands_on_the_right_pixels() {
     let truth = clip();
@@ -97,6 +106,8 @@ fn storm_lidar_depth_lands_on_the_right_pixels() {
     }
     assert!(hits > 20, "only {hits} LiDAR returns");
 
+    let unread = HostClip::from_clip(&open_with(dir.path(), false).load(0).unwrap()).unwrap();
+    assert_eq!(unread.eval_depth_source, Some(DepthSource::LidarGrid));
     std::fs::remove_dir_all(scene.join("lidar")).unwrap();
     let host = HostClip::from_clip(&open(dir.path()).load(0).unwrap()).unwrap();
     assert_eq!(host.eval_depth_source, Some(DepthSource::LidarGrid));

@@ -26,4 +26,5 @@ pub mod motion;
 pub mod pose;
 pub mod resample;
 pub mod scene;
+pub mod seeded;
 pub mod weights;

@@ -79,7 +79,6 @@ fn scalar(t: Tensor<1>) -> f32 {
 #[test]
 fn frame_one_camera_learns_a_change_only_frame_zero_reveals() {
     let device = Device::flex().autodiff();
-    device.seed(11);
     let cfg = ModelConfig {
         depth: 4,
         temporal_layers: [0, 1, 2, 3],
@@ -87,7 +86,10 @@ fn frame_one_camera_learns_a_change_only_frame_zero_reveals() {
         ..ModelConfig::tiny()
     };
     let [h, w] = cfg.image_size;
-    let mut model = Envision4d::new(&cfg, &device);
+    let mut model = envision4d_model::seeded::seeded(&device, 11, || {
+        Ok::<_, std::convert::Infallible>(Envision4d::new(&cfg, &device))
+    })
+    .unwrap();
     let mut optim = AdamConfig::new().with_epsilon(1e-5).init();
     let mut rng = Rng(5);
     let iterations = model.vggt(pairs(&mut rng, h, w, &device).0, VggtDepth::Skip);

@@ -27,11 +27,15 @@ pub fn open_dataset(
             stride: data.stride,
         },
         DataLayout::Waymo => Layout::Waymo(waymo_config(data, purpose)),
-        DataLayout::Nuscenes => Layout::NuScenes(NuScenesConfig::new(
-            &data.split_for(purpose),
-            data.stride,
-            data.windows_per_scene,
-        )),
+        DataLayout::Nuscenes => Layout::NuScenes(NuScenesConfig {
+            // No training loss uses LiDAR: only evaluation reads the sweeps.
+            lidar: purpose == Purpose::Eval,
+            ..NuScenesConfig::new(
+                &data.split_for(purpose),
+                data.stride,
+                data.windows_per_scene,
+            )
+        }),
     };
     let config = DatasetConfig {
         layout,

@@ -141,9 +141,10 @@ pub struct Trainer {
 impl Trainer {
     /// Builds the model on `device` (must be an autodiff device for [`Trainer::step`]).
     pub fn new(config: TrainConfig, device: &Device) -> Result<Self> {
-        // Seed the device RNG so the random init (and hence the run) is reproducible.
-        device.seed(config.seed);
-        let model = build_model(&config, device)?;
+        // Seeded under a process-wide lock so the random init (and hence the run) is
+        // reproducible even when other threads build models at the same time.
+        let model =
+            envision4d_model::seeded::seeded(device, config.seed, || build_model(&config, device))?;
         let rgb_loss = make_rgb_loss(&config, device)?;
         let split = ParamSplit::new(&model, &config.freeze);
         let model = detach_frozen(model, &split);

@@ -20,11 +20,13 @@ use std::path::{Path, PathBuf};
 #[derive(Debug, Clone, PartialEq)]
 pub enum GtSource {
     None,
-    /// A STORM-preprocessed Waymo scene folder, camera id and the clip's timesteps.
+    /// A STORM-preprocessed Waymo scene folder, camera id, the clip's timesteps, and
+    /// whether its LiDAR points are read.
     Storm {
         scene_dir: PathBuf,
         camera: u32,
         timesteps: Vec<i64>,
+        lidar_points: bool,
     },
     /// Resolved nuScenes keyframes of the clip (poses and LiDAR paths from the tables).
     NuScenes {
@@ -128,7 +130,15 @@ pub fn load_clip(entry: &ClipEntry, spec: &ClipSpec, fit: &Fit) -> Result<Clip> 
             scene_dir,
             camera,
             timesteps,
-        } => waymo::load_storm_gt(scene_dir, *camera, timesteps, source_size, fit)?,
+            lidar_points,
+        } => waymo::load_storm_gt(
+            scene_dir,
+            *camera,
+            timesteps,
+            *lidar_points,
+            source_size,
+            fit,
+        )?,
         GtSource::NuScenes { frames } => nuscenes::load_nuscenes_gt(frames, source_size, fit)?,
         GtSource::Synth { clip_dir, indices } => {
             synth::load_synth_gt(clip_dir, indices, source_size, fit)?

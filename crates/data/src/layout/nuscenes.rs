@@ -33,6 +33,8 @@ pub struct NuScenesConfig {
     pub stride: usize,
     /// Windows per scene at most (`None`: all).
     pub windows_per_scene: Option<usize>,
+    /// Whether the LiDAR sweeps are read (evaluation); training leaves them out.
+    pub lidar: bool,
 }
 
 impl NuScenesConfig {
@@ -42,6 +44,7 @@ impl NuScenesConfig {
             camera: "CAM_FRONT".into(),
             stride,
             windows_per_scene,
+            lidar: true,
         }
     }
 }
@@ -197,7 +200,10 @@ fn scene_clips(
                 ),
             )
         })?;
-        let lidar = index.keyframes.get(&key(LIDAR_CHANNEL));
+        let lidar = index
+            .keyframes
+            .get(&key(LIDAR_CHANNEL))
+            .filter(|_| cfg.lidar);
         frames.push((
             root.join(&cam.filename),
             frame_gt(dir, index, cam, lidar, root)?,

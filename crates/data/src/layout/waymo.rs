@@ -27,6 +27,9 @@ pub struct WaymoConfig {
     /// Whether windows may overlap (training's sliding windows). The release's clips do
     /// not: there a window longer than `interval` is refused.
     pub overlapping: bool,
+    /// Whether `lidar/*.bin` points are read (evaluation). Training leaves them out: a
+    /// Waymo sweep is ~6 MB per frame and no training loss uses it.
+    pub lidar_points: bool,
 }
 
 impl Default for WaymoConfig {
@@ -37,6 +40,7 @@ impl Default for WaymoConfig {
             clips_per_scene: 10,
             camera: 0,
             overlapping: false,
+            lidar_points: true,
         }
     }
 }
@@ -51,6 +55,7 @@ impl WaymoConfig {
             clips_per_scene: max_per_scene.unwrap_or(usize::MAX),
             camera: 0,
             overlapping: true,
+            lidar_points: false,
         }
     }
 }
@@ -168,6 +173,7 @@ fn scene_clips(
                     scene_dir: scene_dir.to_path_buf(),
                     camera: cfg.camera,
                     timesteps: ts,
+                    lidar_points: cfg.lidar_points,
                 }
             } else {
                 GtSource::None
@@ -241,6 +247,7 @@ pub fn load_storm_gt(
     scene: &Path,
     cam: u32,
     timesteps: &[i64],
+    read_points: bool,
     source_size: (usize, usize),
     fit: &Fit,
 ) -> Result<Vec<FrameGt>> {
@@ -289,7 +296,10 @@ pub fn load_storm_gt(
             }
             _ => None,
         };
-        let lidar_points = match (find_t(&scene.join("lidar"), t, ".bin"), cam_to_ego) {
+        let bin = read_points
+            .then(|| find_t(&scene.join("lidar"), t, ".bin"))
+            .flatten();
+        let lidar_points = match (bin, cam_to_ego) {
             (Some(p), Some(c2e)) => Some(read_lidar_points(&p, &c2e)?),
             (Some(p), None) => {
                 return Err(DataError::gt(
