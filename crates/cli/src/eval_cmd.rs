@@ -2,16 +2,18 @@
 //! context, depth, poses, baselines, timings; optionally the quality-vs-time sweep) and write
 //! `metrics.json`, `metrics.md` and PNG plots. See `docs/EVAL.md`.
 
+pub mod args;
 pub mod shared;
 
 use crate::backend_choice::BackendChoice;
 use crate::InputError;
 use anyhow::{Context, Result};
-use clap::{Args, ValueEnum};
+use args::{parse_crop, AlignChoice, LayoutChoice, Protocol, SplitChoice};
+use clap::Args;
 use envision4d_data::{atomic, ClipDataset, Split};
 use envision4d_eval::sweep::{mark_pareto, plan, summarize, with_horizon, SweepBase};
 use envision4d_eval::{evaluate_dataset, summary, EvalOptions, Report, SweepPoint};
-use envision4d_losses::{DepthAlignment, EvalCrop};
+use envision4d_losses::EvalCrop;
 use envision4d_model::checkpoint::checkpoint_config;
 use envision4d_model::{Envision4d, ModelConfig};
 use envision4d_train::config::{DataConfig, DataLayout, Purpose};
@@ -94,53 +96,6 @@ pub struct EvalArgs {
     list_windows: bool,
 }
 
-/// `--layout`: the dataset layouts `eval` reads (docs/DATA.md).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-enum LayoutChoice {
-    Synth,
-    Folder,
-    Waymo,
-    Nuscenes,
-}
-
-impl LayoutChoice {
-    fn layout(self) -> DataLayout {
-        match self {
-            LayoutChoice::Synth => DataLayout::Synth,
-            LayoutChoice::Folder => DataLayout::Folder,
-            LayoutChoice::Waymo => DataLayout::Waymo,
-            LayoutChoice::Nuscenes => DataLayout::Nuscenes,
-        }
-    }
-}
-
-/// A named evaluation protocol.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-enum Protocol {
-    /// The official release: 2 context frames, the next 4 scored (`images[2:]` of 6).
-    Release,
-    /// The paper, §4.1: T_c = T_f = 2.
-    Paper,
-}
-
-impl Protocol {
-    const CONTEXT_FRAMES: usize = 2;
-
-    fn future_frames(self) -> usize {
-        match self {
-            Protocol::Release => 4,
-            Protocol::Paper => 2,
-        }
-    }
-
-    fn name(self) -> &'static str {
-        match self {
-            Protocol::Release => "release",
-            Protocol::Paper => "paper",
-        }
-    }
-}
-
 /// The horizon to score: `--future`, or the protocol's, checked against the checkpoint.
 fn horizon(args: &EvalArgs, model: &ModelConfig) -> Result<Option<usize>> {
     let Some(p) = args.protocol else {
@@ -169,48 +124,6 @@ fn horizon(args: &EvalArgs, model: &ModelConfig) -> Result<Option<usize>> {
         .into());
     }
     Ok(Some(want))
-}
-
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-enum SplitChoice {
-    Auto,
-    All,
-    HeldOut,
-    Val,
-}
-
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-enum AlignChoice {
-    None,
-    Median,
-    LeastSquares,
-}
-
-impl AlignChoice {
-    fn alignment(self) -> DepthAlignment {
-        match self {
-            AlignChoice::None => DepthAlignment::None,
-            AlignChoice::Median => DepthAlignment::Median,
-            AlignChoice::LeastSquares => DepthAlignment::LeastSquares,
-        }
-    }
-}
-
-fn parse_crop(s: &str) -> Result<EvalCrop, String> {
-    let v: Vec<usize> = s
-        .split(',')
-        .map(|p| p.trim().parse::<usize>())
-        .collect::<Result<_, _>>()
-        .map_err(|e| format!("{s:?}: {e}; expected TOP,BOTTOM,LEFT,RIGHT"))?;
-    match v[..] {
-        [top, bottom, left, right] => Ok(EvalCrop {
-            top,
-            bottom,
-            left,
-            right,
-        }),
-        _ => Err(format!("{s:?}: expected 4 numbers TOP,BOTTOM,LEFT,RIGHT")),
-    }
 }
 
 /// What the arguments resolve to.

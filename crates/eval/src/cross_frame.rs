@@ -82,8 +82,8 @@ pub fn cross_frame(
     ))
 }
 
-/// Scores of each rendered frame against `gt` (frame numbers are positions in `gt`'s clip
-/// only when `gt` holds frames `0..`; single-frame calls get frame 0, fixed by the caller).
+/// Scores of each rendered frame against `gt`, `frame` = position in `gt` (the context
+/// frame number when `gt` holds frames `0..T_c`; pair scores do not use it).
 fn frame_scores(r: &Rendered, gt: &HostImages, opts: &EvalOptions) -> Result<Vec<FrameScore>> {
     let m = evaluate_images(&r.images, gt, opts.cross_frame_crop, &opts.lpips)?;
     Ok((0..m.psnr.len())

@@ -176,8 +176,8 @@ pub fn write_nuscenes_scenes(
                     translation: ego_to_world.translation().to_array(),
                 });
             }
-            let stem = format!("{name}__{{}}__{ts}");
-            let img = format!("samples/{CAMERA}/{}.png", stem.replace("{}", CAMERA));
+            // nuScenes names files `<log>__<CHANNEL>__<microseconds>`.
+            let img = format!("samples/{CAMERA}/{name}__{CAMERA}__{ts}.png");
             let png = encode_png_rgb8(&Image::new(w, h, frame.rgb.clone())).map_err(|msg| {
                 DataError::Write {
                     path: root.join(&img),
@@ -185,10 +185,7 @@ pub fn write_nuscenes_scenes(
                 }
             })?;
             write_bytes(&root.join(&img), &png)?;
-            let pcd = format!(
-                "samples/{LIDAR_CHANNEL}/{}.pcd.bin",
-                stem.replace("{}", LIDAR_CHANNEL)
-            );
+            let pcd = format!("samples/{LIDAR_CHANNEL}/{name}__{LIDAR_CHANNEL}__{ts}.pcd.bin");
             let cv_to_lidar = lidar_from_ego.mul(&cam_to_ego);
             let mut points: Vec<f32> = Vec::new();
             for v in (0..h).step_by(BEAM_ROW_STEP) {
