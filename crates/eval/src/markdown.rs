@@ -92,7 +92,7 @@ fn mean_tables(s: &mut String, m: &ClipMetrics) {
     }
     let _ = writeln!(
         s,
-        "\nAUC@30 is ×100. Pose errors are relative to frame 0, no scale alignment.\n"
+        "\nAUC@30 is ×100. Pose errors are relative to frame 0; the translation error is after the clip's scale alignment (see the header; `trans_err_unaligned` in metrics.json without it).\n"
     );
     let _ = writeln!(s, "## Per future horizon (mean over clips)\n");
     let _ = writeln!(
