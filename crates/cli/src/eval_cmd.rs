@@ -270,9 +270,7 @@ pub fn run(args: EvalArgs) -> Result<()> {
     let lpips = lpips_status(args.lpips_weights.as_deref(), &device)?;
     let mut opts = EvalOptions::new(cfg.context_frames, lpips);
     opts.crop = args.crop.unwrap_or_default();
-    opts.cross_frame_crop = args
-        .cross_frame_crop
-        .unwrap_or_else(|| EvalOptions::release_cross_frame_crop(cfg.image_size));
+    opts.cross_frame_crop = args.cross_frame_crop;
     opts.depth_alignment = args.depth_align.alignment();
     atomic::create_dir(&args.out).map_err(|e| InputError(e.to_string()))?;
 

@@ -80,6 +80,14 @@ fn parse_size(s: &str) -> Result<(usize, usize), String> {
     Ok((side(h)?, side(w)?))
 }
 
+/// The world stream of scene `scene` of split `split` (FNV-1a of the name, then the number).
+fn scene_stream(split: &str, scene: usize) -> u64 {
+    let h = split.bytes().fold(0xcbf2_9ce4_8422_2325u64, |h, b| {
+        (h ^ b as u64).wrapping_mul(0x0000_0100_0000_01b3)
+    });
+    h.wrapping_add(scene as u64)
+}
+
 /// A split is one folder name, never a path.
 fn valid_split_name(s: &str) -> bool {
     !s.is_empty()
@@ -162,7 +170,14 @@ pub fn run(args: SynthArgs) -> Result<()> {
         _ => {}
     }
     for i in 0..args.clips {
-        let clip = render_clip(&cfg, i as u64, || bar.inc(1))?;
+        // Our layout keeps clip i's world at stream i; a real layout's scene draws from a
+        // stream of its split and scene number, so two splits written with one --seed never
+        // hold the same world and --first-scene continues instead of repeating.
+        let stream = match args.layout {
+            SynthLayout::Synth => i as u64,
+            _ => scene_stream(&split, args.first_scene + i),
+        };
+        let clip = render_clip(&cfg, stream, || bar.inc(1))?;
         let dir = match args.layout {
             SynthLayout::Synth => args.out.join(format!("clip_{i:06}")),
             SynthLayout::StormWaymo => args
@@ -200,6 +215,18 @@ pub fn run(args: SynthArgs) -> Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Guards the real-layout world streams: the same scene number in two splits, and two
+    /// scene numbers in one split, are different worlds (training and evaluation scenes
+    /// written with one --seed were identical).
+    #[test]
+    fn scene_streams_differ_across_splits_and_scenes() {
+        let a = scene_stream("training", 0);
+        assert_ne!(a, scene_stream("validation", 0));
+        assert_ne!(a, scene_stream("training", 1));
+        assert_ne!(scene_stream("mini_train", 0), scene_stream("mini_val", 0));
+        assert_eq!(a, scene_stream("training", 0));
+    }
 
     /// Guards argument parsing: sizes are HxW with sane bounds; unknown presets list names.
     #[test]

@@ -182,12 +182,17 @@ fn describe_data(cfg: &envision4d_train::TrainConfig) -> Result<()> {
             !clip.gt.is_empty() && clip.gt.iter().all(f)
         };
         let yes = |b: bool| if b { "yes" } else { "no" };
+        // The real-data readers leave LiDAR out of training (no loss uses it).
+        let depth = if data.has_splits() {
+            "not read for training (LiDAR: eval only)"
+        } else {
+            yes(has(&|g| g.depth.is_some()))
+        };
         println!(
-            "ground truth (first window {}): intrinsics {}, poses {}, depth {}",
+            "ground truth (first window {}): intrinsics {}, poses {}, depth {depth}",
             clip.id,
             yes(has(&|g| g.intrinsics.is_some())),
             yes(has(&|g| g.world_to_camera.is_some())),
-            yes(has(&|g| g.depth.is_some() || g.lidar_points.is_some())),
         );
     }
     Ok(())

@@ -75,8 +75,8 @@ fn config(dir: &Path, root: &Path, steps: i64) -> PathBuf {
     path
 }
 
-/// Guards the training side: `--dry-run` reports the training split with its poses and
-/// LiDAR depth and refuses `split = "validation"`, a 20-step run on it finishes, and nothing of `validation/` is read (its
+/// Guards the training side: `--dry-run` reports the training split with its poses (LiDAR
+/// left to eval) and refuses `split = "validation"`, a 20-step run on it finishes, and nothing of `validation/` is read (its
 /// frames are made undecodable, so reading one would be a warning or an error).
 #[test]
 fn storm_tree_trains_on_training_only() {
@@ -99,7 +99,7 @@ fn storm_tree_trains_on_training_only() {
         "{out}"
     );
     assert!(
-        out.contains("poses yes") && out.contains("depth yes"),
+        out.contains("poses yes") && out.contains("depth not read for training"),
         "{out}"
     );
     // The same tree with split = "validation" is refused, naming the key.
@@ -259,7 +259,7 @@ fn nuscenes_tree_trains_on_mini_train_and_evaluates_mini_val() {
         "{out}"
     );
     assert!(
-        out.contains("poses yes") && out.contains("depth no"),
+        out.contains("poses yes") && out.contains("depth not read for training"),
         "{out}"
     );
     let dry = bin(&[

@@ -104,6 +104,28 @@ pub fn resample_map(map: &DepthMap, k: &Intrinsics, size: (usize, usize)) -> Vec
     grid
 }
 
+/// A dense map (every pixel measured, e.g. rendered depth) on another grid of the same
+/// camera, sampled at the `(h, w)` grid's pixel centres (nearest source pixel): unlike the
+/// LiDAR path, an upscaled dense map keeps no holes and a downscaled one no foreground bias.
+/// Target pixels outside the source image get 0.
+pub fn sample_dense(map: &DepthMap, k: &Intrinsics, size: (usize, usize)) -> Vec<f32> {
+    let (mh, mw) = (map.map.height, map.map.width);
+    let src = &map.intrinsics;
+    let channels = map.map.channels.max(1);
+    let mut grid = vec![0.0f32; size.0 * size.1];
+    for y in 0..size.0 {
+        // Same camera centre: the grids differ by a 2D affine map, independent of depth.
+        let ys = (y as f64 + 0.5 - k.cy) / k.fy * src.fy + src.cy;
+        for x in 0..size.1 {
+            let xs = (x as f64 + 0.5 - k.cx) / k.fx * src.fx + src.cx;
+            if xs >= 0.0 && ys >= 0.0 && xs < mw as f64 && ys < mh as f64 {
+                grid[y * size.1 + x] = map.map.data[(ys as usize * mw + xs as usize) * channels];
+            }
+        }
+    }
+    grid
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -160,6 +182,29 @@ mod tests {
         let grid = splat_points(&pts, &kk, (4, 4));
         assert_eq!(grid[2 * 4 + 2], 3.0);
         assert_eq!(grid.iter().filter(|z| **z > 0.0).count(), 1);
+    }
+
+    /// Guards dense resampling: a 2x upscaled dense map has no holes (every target pixel
+    /// takes the source pixel it lies in).
+    #[test]
+    fn dense_maps_are_sampled_without_holes() {
+        let small = k(5.0, 2.0, 2.0);
+        let map = DepthMap {
+            map: FloatMap {
+                width: 2,
+                height: 2,
+                channels: 1,
+                data: vec![1.0, 2.0, 3.0, 4.0],
+            },
+            intrinsics: small,
+            sparse: false,
+        };
+        let big = small.resized((2, 2), (4, 4));
+        let grid = sample_dense(&map, &big, (4, 4));
+        assert_eq!(
+            grid,
+            vec![1.0, 1.0, 2.0, 2.0, 1.0, 1.0, 2.0, 2.0, 3.0, 3.0, 4.0, 4.0, 3.0, 3.0, 4.0, 4.0]
+        );
     }
 
     /// Guards the same-grid shortcut: a dense map on the frame grid is copied bit for bit.

@@ -2,7 +2,7 @@
 //! CHW in [0, 1], with the ground truth the layout provides.
 
 use crate::clip::{Clip, FrameGt};
-use crate::depth_grid::{resample_map, splat_points, DepthSource};
+use crate::depth_grid::{resample_map, sample_dense, splat_points, DepthSource};
 use crate::error::{DataError, Result};
 use crate::geom::{Intrinsics, Mat4};
 
@@ -18,8 +18,9 @@ pub struct HostClip {
     /// Per frame `H·W` z-depth (empty when unknown).
     pub depths: Vec<Vec<f32>>,
     /// Per frame `H·W` z-depth for evaluation, 0 where nothing was measured: LiDAR moved
-    /// onto the frame grid (`depth_grid`), or the dense map. Empty when unknown.
-    pub eval_depths: Vec<Vec<f32>>,
+    /// onto the frame grid (`depth_grid`), or the dense map; `None` for a frame without
+    /// depth (one missing file costs that frame only). Empty when the layout has no GT.
+    pub eval_depths: Vec<Option<Vec<f32>>>,
     /// Where `eval_depths` came from (the first frame's source; a clip does not mix them).
     pub eval_depth_source: Option<DepthSource>,
 }
@@ -66,7 +67,7 @@ impl HostClip {
         let eval_depths = clip
             .gt
             .iter()
-            .map_while(|g| {
+            .map(|g| {
                 let (grid, source) = eval_depth(g, (h, w))?;
                 eval_depth_source.get_or_insert(source);
                 Some(grid)
@@ -92,10 +93,9 @@ fn eval_depth(g: &FrameGt, size: (usize, usize)) -> Option<(Vec<f32>, DepthSourc
         return Some((splat_points(points, &k, size), DepthSource::LidarPoints));
     }
     let d = g.depth.as_ref()?;
-    let source = if d.sparse {
-        DepthSource::LidarGrid
+    Some(if d.sparse {
+        (resample_map(d, &k, size), DepthSource::LidarGrid)
     } else {
-        DepthSource::Dense
-    };
-    Some((resample_map(d, &k, size), source))
+        (sample_dense(d, &k, size), DepthSource::Dense)
+    })
 }

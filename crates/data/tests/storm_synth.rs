@@ -24,12 +24,12 @@ fn clip() -> ClipRender {
 }
 
 /// The training split's windows, with the LiDAR points read or not.
-fn open_with(root: &Path, lidar_points: bool) -> ClipDataset {
+fn open_with(root: &Path, lidar: bool) -> ClipDataset {
     ClipDataset::open(
         root,
         DatasetConfig {
             layout: Layout::Waymo(WaymoConfig {
-                lidar_points,
+                lidar,
                 ..WaymoConfig::training("training", 1, None)
             }),
             spec: ClipSpec {
@@ -76,8 +76,8 @@ fn storm_scene_poses_decode_to_the_truth() {
 }
 
 /// Guards LiDAR depth on the frame grid: points land on the pixel they were taken from with
-/// its exact z-depth; without `lidar/` (or with the points not read, as training does), the
-/// quarter-grid means land at the cell centres.
+/// its exact z-depth; without `lidar/` the quarter-grid means land at the cell centres; the
+/// training reader reads neither.
 #[test]
 fn storm_lidar_depth_lands_on_the_right_pixels() {
     let truth = clip();
@@ -89,7 +89,7 @@ fn storm_lidar_depth_lands_on_the_right_pixels() {
     assert_eq!(host.eval_depths.len(), 4);
     let depth0 = &truth.frames[0].depth;
     let mut hits = 0;
-    for (i, &z) in host.eval_depths[0].iter().enumerate() {
+    for (i, &z) in host.eval_depths[0].as_ref().unwrap().iter().enumerate() {
         if z > 0.0 {
             hits += 1;
             let (v, u) = (i / W, i % W);
@@ -106,12 +106,13 @@ fn storm_lidar_depth_lands_on_the_right_pixels() {
     }
     assert!(hits > 20, "only {hits} LiDAR returns");
 
+    // Training's reader leaves the LiDAR out altogether.
     let unread = HostClip::from_clip(&open_with(dir.path(), false).load(0).unwrap()).unwrap();
-    assert_eq!(unread.eval_depth_source, Some(DepthSource::LidarGrid));
+    assert_eq!(unread.eval_depth_source, None);
     std::fs::remove_dir_all(scene.join("lidar")).unwrap();
     let host = HostClip::from_clip(&open(dir.path()).load(0).unwrap()).unwrap();
     assert_eq!(host.eval_depth_source, Some(DepthSource::LidarGrid));
-    let grid = &host.eval_depths[0];
+    let grid = host.eval_depths[0].as_ref().unwrap();
     let mut cells = 0;
     for vq in 0..H / 4 {
         for uq in 0..W / 4 {

@@ -85,7 +85,9 @@ pub fn cross_frame(
 /// Scores of each rendered frame against `gt`, `frame` = position in `gt` (the context
 /// frame number when `gt` holds frames `0..T_c`; pair scores do not use it).
 fn frame_scores(r: &Rendered, gt: &HostImages, opts: &EvalOptions) -> Result<Vec<FrameScore>> {
-    let m = evaluate_images(&r.images, gt, opts.cross_frame_crop, &opts.lpips)?;
+    let [_, _, h, w] = gt.shape();
+    let crop = opts.cross_frame_crop_for([h, w]);
+    let m = evaluate_images(&r.images, gt, crop, &opts.lpips)?;
     Ok((0..m.psnr.len())
         .map(|j| FrameScore {
             frame: j,

@@ -12,7 +12,7 @@
 //! zero median), that frame is scored without scaling and its scale is reported as 1: an
 //! empty render must cost, not vanish from the mean.
 
-use crate::error::Result;
+use crate::error::{EvalError, Result};
 use crate::protocol::alignment_name;
 use crate::report::{mean, DepthScore};
 use envision4d_data::DepthSource;
@@ -20,14 +20,16 @@ use envision4d_losses::{
     depth_rmse, AlignmentScope, DepthAlignment, EvalCrop, HostDepths, LossError,
 };
 
-/// Ground truth for some frames of a clip on the frame grid (`H·W` each, 0 = none).
+/// Ground truth of a clip's frames on the frame grid (`H·W` each, 0 = none; `None` for a
+/// frame without depth).
 pub struct DepthTruth<'a> {
-    pub maps: &'a [Vec<f32>],
+    pub maps: &'a [Option<Vec<f32>>],
     pub source: DepthSource,
 }
 
 /// D-RMSE of predicted maps `pred` (`[F, H, W]`, one per entry of `frames`) against
-/// `truth.maps[frames[k]]`, after `crop`. `None` when no frame has a valid pixel left.
+/// `truth.maps[frames[k]]`, after `crop`. A frame without truth (or without a valid pixel
+/// left) scores `None` alone; `None` overall when no frame has one.
 pub fn depth_score(
     pred: &HostDepths,
     truth: &DepthTruth,
@@ -36,12 +38,18 @@ pub fn depth_score(
     alignment: DepthAlignment,
 ) -> Result<Option<DepthScore>> {
     let [f, h, w] = pred.shape();
-    if f != frames.len() || frames.iter().any(|&j| j >= truth.maps.len()) {
-        return Ok(None);
+    if f != frames.len() {
+        return Err(EvalError::Unscorable(format!(
+            "{f} predicted depth maps for {} scored frames",
+            frames.len()
+        )));
     }
     let gt: Vec<f64> = frames
         .iter()
-        .flat_map(|&j| truth.maps[j].iter().map(|&v| v as f64))
+        .flat_map(|&j| match truth.maps.get(j).and_then(Option::as_ref) {
+            Some(map) if map.len() == h * w => map.iter().map(|&v| v as f64).collect(),
+            _ => vec![0.0; h * w],
+        })
         .collect();
     let gt = crop.apply_depths(&HostDepths::new("ground-truth depth", gt, [f, h, w])?)?;
     let pred = crop.apply_depths(pred)?;
@@ -105,18 +113,20 @@ mod tests {
     }
 
     /// Guards the Table 1 number on a hand-computed case: rendered depth known, LiDAR on
-    /// three pixels of frame 2 and none of frame 3; median alignment, one scale per frame.
+    /// three pixels of frame 2, frame 3's depth file missing (it must not drop frame 2's
+    /// score); median alignment, one scale per frame.
     #[test]
     fn rendered_depth_against_known_lidar() {
         // Rendered 2x2 depth for frames 2 and 3 of a clip.
         let pred = depths(vec![1.0, 2.0, 4.0, 9.0, 5.0, 5.0, 5.0, 5.0], [2, 2, 2]);
         let empty = vec![0.0f32; 4];
         // LiDAR at pixels 0, 1, 2 of frame 2: 2, 4, 10 (pixel 3 has no return).
+        // Frame 3 has no depth file at all: it alone scores nothing.
         let maps = vec![
-            empty.clone(),
-            empty.clone(),
-            vec![2.0, 4.0, 10.0, 0.0],
-            empty,
+            Some(empty.clone()),
+            Some(empty),
+            Some(vec![2.0, 4.0, 10.0, 0.0]),
+            None,
         ];
         let truth = DepthTruth {
             maps: &maps,
@@ -148,7 +158,7 @@ mod tests {
     #[test]
     fn empty_render_is_scored_without_scaling() {
         let pred = depths(vec![0.0; 4], [1, 2, 2]);
-        let maps = vec![vec![3.0f32, 0.0, 0.0, 0.0]];
+        let maps = vec![Some(vec![3.0f32, 0.0, 0.0, 0.0])];
         let truth = DepthTruth {
             maps: &maps,
             source: DepthSource::LidarPoints,
@@ -171,7 +181,7 @@ mod tests {
         let pred = depths(vec![1.0; 9], [1, 3, 3]);
         let mut map = vec![0.0f32; 9];
         map[0] = 5.0;
-        let maps = vec![map];
+        let maps = vec![Some(map)];
         let truth = DepthTruth {
             maps: &maps,
             source: DepthSource::Dense,

@@ -57,8 +57,9 @@ pub struct EvalOptions {
     /// Pixels removed from every future image (and depth map) before the metrics.
     pub crop: EvalCrop,
     /// Pixels removed before the cross-frame scores (the paper's boundary crop; see
-    /// [`EvalOptions::release_cross_frame_crop`]).
-    pub cross_frame_crop: EvalCrop,
+    /// [`EvalOptions::release_cross_frame_crop`]). `None`: the release's crop scaled to each
+    /// clip's size.
+    pub cross_frame_crop: Option<EvalCrop>,
     /// LPIPS network, or the reason it is not reported.
     pub lpips: LpipsStatus,
     /// Rasterizer settings (the culling thresholds are sweep knobs).
@@ -78,13 +79,20 @@ impl EvalOptions {
         EvalCrop::RELEASE_MAIN.scaled_to(size)
     }
 
-    /// The paper's protocol: no crop of the future frames, the release's crop for the
-    /// cross-frame scores, default rasterizer, median depth alignment, full extent.
+    /// The cross-frame crop used for clips of `size`.
+    pub fn cross_frame_crop_for(&self, size: [usize; 2]) -> EvalCrop {
+        self.cross_frame_crop
+            .unwrap_or_else(|| Self::release_cross_frame_crop(size))
+    }
+
+    /// The paper's protocol: no crop of the future frames, the release's crop (scaled to the
+    /// clip size) for the cross-frame scores, default rasterizer, median depth alignment,
+    /// full extent.
     pub fn new(context_frames: usize, lpips: LpipsStatus) -> Self {
         EvalOptions {
             context_frames,
             crop: EvalCrop::default(),
-            cross_frame_crop: EvalCrop::RELEASE_MAIN,
+            cross_frame_crop: None,
             lpips,
             raster: RasterConfig::default(),
             depth_alignment: DepthAlignment::Median,

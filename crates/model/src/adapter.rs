@@ -304,6 +304,12 @@ pub fn gaussians_at(
     exclusion: Exclusion,
 ) -> (Tensor<2>, Tensor<2>, Tensor<2>, Tensor<1>, Tensor<2>) {
     let [_, s, g, _] = a.means.dims();
+    if let Exclusion::OnlySource(src) = exclusion {
+        assert!(
+            src < s,
+            "OnlySource({src}) but there are {s} context frames"
+        );
+    }
     let take4 = |t: &Tensor<4>, i: usize, c: usize| {
         t.clone()
             .slice([batch..batch + 1, i..i + 1, 0..g, 0..c])

@@ -107,6 +107,12 @@ impl BackboneOutput {
 
 impl Envision4d {
     pub fn new(cfg: &ModelConfig, device: &Device) -> Self {
+        // Under the initialisation lock: the eager random draws below must not interleave
+        // with another thread's seeded build (`seeded`).
+        crate::seeded::with_init_lock(|| Self::build(cfg, device))
+    }
+
+    fn build(cfg: &ModelConfig, device: &Device) -> Self {
         let dpt = |kind| DptHead::new(kind, 2 * cfg.embed_dim, &cfg.dpt, cfg.patch_size, device);
         Envision4d {
             aggregator: Aggregator::new(cfg, device),

@@ -107,7 +107,7 @@ pub fn build_report(
         image_size: cfg.image_size,
         input_size: cfg.image_size,
         crop: CropInfo::from(opts.crop),
-        cross_frame_crop: CropInfo::from(opts.cross_frame_crop),
+        cross_frame_crop: CropInfo::from(opts.cross_frame_crop_for(cfg.image_size)),
         depth_alignment: alignment_name(opts.depth_alignment).into(),
         translation_alignment: TRANSLATION_ALIGNMENT.into(),
         translation_unit: TRANSLATION_UNIT.into(),

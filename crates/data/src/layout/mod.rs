@@ -21,12 +21,12 @@ use std::path::{Path, PathBuf};
 pub enum GtSource {
     None,
     /// A STORM-preprocessed Waymo scene folder, camera id, the clip's timesteps, and
-    /// whether its LiDAR points are read.
+    /// whether its LiDAR depth is read.
     Storm {
         scene_dir: PathBuf,
         camera: u32,
         timesteps: Vec<i64>,
-        lidar_points: bool,
+        lidar: bool,
     },
     /// Resolved nuScenes keyframes of the clip (poses and LiDAR paths from the tables).
     NuScenes {
@@ -130,15 +130,8 @@ pub fn load_clip(entry: &ClipEntry, spec: &ClipSpec, fit: &Fit) -> Result<Clip> 
             scene_dir,
             camera,
             timesteps,
-            lidar_points,
-        } => waymo::load_storm_gt(
-            scene_dir,
-            *camera,
-            timesteps,
-            *lidar_points,
-            source_size,
-            fit,
-        )?,
+            lidar,
+        } => waymo::load_storm_gt(scene_dir, *camera, timesteps, *lidar, source_size, fit)?,
         GtSource::NuScenes { frames } => nuscenes::load_nuscenes_gt(frames, source_size, fit)?,
         GtSource::Synth { clip_dir, indices } => {
             synth::load_synth_gt(clip_dir, indices, source_size, fit)?

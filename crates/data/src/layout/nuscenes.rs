@@ -22,6 +22,9 @@ use crate::resize::Fit;
 use std::collections::{HashMap, HashSet};
 use std::path::{Path, PathBuf};
 
+/// Offset from an integer-centred (OpenCV) pixel coordinate to ours (centre at u + 0.5).
+pub const PIXEL_CENTRE: f64 = 0.5;
+
 /// Reader settings.
 #[derive(Debug, Clone, PartialEq)]
 pub struct NuScenesConfig {
@@ -87,9 +90,18 @@ fn load_index(dir: &Path, channels: &[&str]) -> Result<Index> {
         }
         let channel = calibrated
             .get(&sd.calibrated_sensor_token)
-            .and_then(|c| channel_of.get(&c.sensor_token));
-        if let Some(ch) = channel.filter(|ch| channels.contains(&ch.as_str())) {
-            keyframes.insert((sd.sample_token.clone(), ch.clone()), sd);
+            .and_then(|c| channel_of.get(&c.sensor_token))
+            .ok_or_else(|| {
+                DataError::gt(
+                    dir.join(format!("{SAMPLE_DATA}.json")),
+                    format!(
+                        "sample_data {}: calibrated_sensor {:?} or its sensor is not in the tables",
+                        sd.token, sd.calibrated_sensor_token
+                    ),
+                )
+            })?;
+        if channels.contains(&channel.as_str()) {
+            keyframes.insert((sd.sample_token.clone(), channel.clone()), sd);
         }
     }
     Ok(Index {
@@ -149,7 +161,14 @@ pub fn scan(root: &Path, spec: &ClipSpec, cfg: &NuScenesConfig) -> Result<Scan> 
         .filter(|s| wanted.contains(&s.name))
         .collect();
     scenes.sort_by(|a, b| a.name.cmp(&b.name));
-    let absent = wanted.len() - scenes.len();
+    // Two records of one scene would yield its clips twice (and mix their tokens).
+    if let Some(pair) = scenes.windows(2).find(|p| p[0].name == p[1].name) {
+        return Err(DataError::gt(
+            dir.join(format!("{SCENE}.json")),
+            format!("scene {:?} is listed twice", pair[0].name),
+        ));
+    }
+    let absent = wanted.len().saturating_sub(scenes.len());
     if absent > 0 {
         scan.skipped.push(format!(
             "{}: {absent} of the {} scenes of split {:?} are not in its scene table",
@@ -278,12 +297,14 @@ fn frame_gt(
         Ok((e2w.mul(&s2e), e2w, cs))
     };
     let (cam_to_world, ego_to_world, cs) = sensor_to_world(cam)?;
+    // nuScenes calibrations put pixel centres at integer coordinates (OpenCV); ours put
+    // them at u + 0.5, so the principal point moves by half a pixel.
     let k = match cs.camera_intrinsic[..] {
         [r0, r1, _] if r0[0] > 0.0 && r1[1] > 0.0 => Intrinsics {
             fx: r0[0],
             fy: r1[1],
-            cx: r0[2],
-            cy: r1[2],
+            cx: r0[2] + PIXEL_CENTRE,
+            cy: r1[2] + PIXEL_CENTRE,
         },
         _ => {
             return Err(DataError::gt(
@@ -355,13 +376,16 @@ fn read_pcd_bin(path: &Path, to_cam: &Mat4) -> Result<Vec<[f32; 3]>> {
         ));
     }
     let mut out = Vec::with_capacity(bytes.len() / record);
-    for rec in bytes.chunks_exact(record) {
+    for (idx, rec) in bytes.chunks_exact(record).enumerate() {
         let f = |c: usize| {
             f32::from_le_bytes([rec[4 * c], rec[4 * c + 1], rec[4 * c + 2], rec[4 * c + 3]])
         };
         let (x, y, z) = (f(0), f(1), f(2));
         if !(x.is_finite() && y.is_finite() && z.is_finite()) {
-            return Err(DataError::gt(path, "a LiDAR point is not finite"));
+            return Err(DataError::gt(
+                path,
+                format!("LiDAR point {idx} is not finite"),
+            ));
         }
         let p = to_cam.transform_point(Vec3::new(x as f64, y as f64, z as f64));
         if p.z > 0.0 {

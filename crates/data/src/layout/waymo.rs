@@ -27,9 +27,9 @@ pub struct WaymoConfig {
     /// Whether windows may overlap (training's sliding windows). The release's clips do
     /// not: there a window longer than `interval` is refused.
     pub overlapping: bool,
-    /// Whether `lidar/*.bin` points are read (evaluation). Training leaves them out: a
-    /// Waymo sweep is ~6 MB per frame and no training loss uses it.
-    pub lidar_points: bool,
+    /// Whether LiDAR depth is read (`depth_flows_4/`, `lidar/*.bin`: evaluation). Training
+    /// leaves it out: a Waymo sweep is ~6 MB per frame and no training loss uses LiDAR.
+    pub lidar: bool,
 }
 
 impl Default for WaymoConfig {
@@ -40,7 +40,7 @@ impl Default for WaymoConfig {
             clips_per_scene: 10,
             camera: 0,
             overlapping: false,
-            lidar_points: true,
+            lidar: true,
         }
     }
 }
@@ -55,7 +55,7 @@ impl WaymoConfig {
             clips_per_scene: max_per_scene.unwrap_or(usize::MAX),
             camera: 0,
             overlapping: true,
-            lidar_points: false,
+            lidar: false,
         }
     }
 }
@@ -173,7 +173,7 @@ fn scene_clips(
                     scene_dir: scene_dir.to_path_buf(),
                     camera: cfg.camera,
                     timesteps: ts,
-                    lidar_points: cfg.lidar_points,
+                    lidar: cfg.lidar,
                 }
             } else {
                 GtSource::None
@@ -247,7 +247,7 @@ pub fn load_storm_gt(
     scene: &Path,
     cam: u32,
     timesteps: &[i64],
-    read_points: bool,
+    read_lidar: bool,
     source_size: (usize, usize),
     fit: &Fit,
 ) -> Result<Vec<FrameGt>> {
@@ -286,17 +286,17 @@ pub fn load_storm_gt(
             };
         let world_to_camera =
             cam_to_world_waymo.map(|c2w| c2w.mul(&OPENCV_TO_WAYMO_CAMERA).rigid_inverse());
-        let depth = match (
-            find_t(&scene.join("depth_flows_4"), t, &format!("_{cam}.npy")),
-            k_source,
-        ) {
+        let grid = read_lidar
+            .then(|| find_t(&scene.join("depth_flows_4"), t, &format!("_{cam}.npy")))
+            .flatten();
+        let depth = match (grid, k_source) {
             (Some(p), Some(k)) => Some(read_lidar_depth(&p, &k, source_size)?),
             (Some(p), None) => {
                 return Err(DataError::gt(p, "LiDAR depth without intrinsics/<cam>.txt"))
             }
             _ => None,
         };
-        let bin = read_points
+        let bin = read_lidar
             .then(|| find_t(&scene.join("lidar"), t, ".bin"))
             .flatten();
         let lidar_points = match (bin, cam_to_ego) {
@@ -348,7 +348,7 @@ fn read_lidar_points(path: &Path, cam_to_ego: &Mat4) -> Result<Vec<[f32; 3]>> {
         .rigid_inverse()
         .mul(&cam_to_ego.rigid_inverse());
     let mut out = Vec::with_capacity(bytes.len() / record);
-    for rec in bytes.chunks_exact(record) {
+    for (idx, rec) in bytes.chunks_exact(record).enumerate() {
         let f = |c: usize| {
             f32::from_le_bytes([rec[4 * c], rec[4 * c + 1], rec[4 * c + 2], rec[4 * c + 3]])
         };
@@ -358,7 +358,10 @@ fn read_lidar_points(path: &Path, cam_to_ego: &Mat4) -> Result<Vec<[f32; 3]>> {
             f(LIDAR_POINT.end - 1),
         ];
         if !(x.is_finite() && y.is_finite() && z.is_finite()) {
-            return Err(DataError::gt(path, "a LiDAR point is not finite"));
+            return Err(DataError::gt(
+                path,
+                format!("LiDAR record {idx} is not finite"),
+            ));
         }
         let p = ego_to_cv.transform_point(crate::geom::Vec3::new(x as f64, y as f64, z as f64));
         if p.z > 0.0 {

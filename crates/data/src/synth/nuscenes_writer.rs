@@ -14,6 +14,7 @@ use crate::atomic::{create_dir, write_bytes};
 use crate::error::{DataError, Result};
 use crate::frame::{encode_png_rgb8, Image};
 use crate::geom::Mat4;
+use crate::layout::nuscenes::PIXEL_CENTRE;
 use crate::layout::nuscenes_tables::{
     quaternion, read_table, rigid, scene_name, split_scenes, version_of, CalibratedSensorRecord,
     EgoPoseRecord, LogRecord, SampleDataRecord, SampleRecord, SceneRecord, SensorRecord,
@@ -34,7 +35,7 @@ const LIDAR_ROTATION: [f64; 4] = [
     0.0,
     std::f64::consts::FRAC_1_SQRT_2,
 ];
-/// Microseconds of the first frame of scene `n`: one second of gap per scene number.
+/// Microseconds of the first frame of scene `n`: 1 000 s between scene numbers.
 const EPOCH_US: i64 = 1_533_000_000_000_000;
 
 /// A deterministic 32-hex-digit token for record `index` of `kind` in scene `scene`.
@@ -80,6 +81,23 @@ pub fn write_nuscenes_scenes(
         ));
     }
     let tables = root.join(version);
+    if tables.join(format!("{SCENE}.json")).is_file() {
+        let existing: Vec<SceneRecord> = read_table(&tables, SCENE)?;
+        let ours: Vec<String> = (0..clips.len())
+            .map(|i| scene_name(names[first_scene + i]))
+            .collect();
+        if let Some(dup) = existing.iter().find(|s| ours.contains(&s.name)) {
+            return Err(DataError::config(
+                "first_scene",
+                first_scene,
+                format!(
+                    "{} already holds {:?}: pass a --first-scene past the scenes written",
+                    tables.display(),
+                    dup.name
+                ),
+            ));
+        }
+    }
     for d in [
         tables.clone(),
         root.join("samples").join(CAMERA),
@@ -126,7 +144,12 @@ pub fn write_nuscenes_scenes(
             sensor_token: cam_sensor.into(),
             translation: CAMERA_MOUNT,
             rotation: quaternion(&cam_to_ego),
-            camera_intrinsic: vec![[k.fx, 0.0, k.cx], [0.0, k.fy, k.cy], [0.0, 0.0, 1.0]],
+            // nuScenes' convention: pixel centres at integers (the reader adds the half back).
+            camera_intrinsic: vec![
+                [k.fx, 0.0, k.cx - PIXEL_CENTRE],
+                [0.0, k.fy, k.cy - PIXEL_CENTRE],
+                [0.0, 0.0, 1.0],
+            ],
         });
         calib.push(CalibratedSensorRecord {
             token: token(8, n, 0),
