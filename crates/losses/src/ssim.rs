@@ -113,6 +113,52 @@ fn gaussian_filter(src: &[f64], h: usize, w: usize, taps: &[f64]) -> Vec<f64> {
 
 /// Mean SSIM of one channel over the border-cropped interior.
 fn channel_ssim(x: &[f64], y: &[f64], h: usize, w: usize, taps: &[f64]) -> f64 {
+    let map = channel_ssim_map(x, y, h, w, taps);
+    // skimage crops (win_size − 1) / 2 pixels on each side before averaging.
+    let pad = (SSIM_WIN_SIZE - 1) / 2;
+    let mut sum = 0.0;
+    for yy in pad..h - pad {
+        for xx in pad..w - pad {
+            sum += map[yy * w + xx];
+        }
+    }
+    sum / ((h - 2 * pad) * (w - 2 * pad)) as f64
+}
+
+/// Per-pixel SSIM of each image, averaged over channels (`[H·W]` per image); only the
+/// interior ([`ssim_interior`]) is what [`ssim`] averages.
+pub fn ssim_maps(pred: &HostImages, gt: &HostImages) -> Result<Vec<Vec<f64>>> {
+    same_shape("ssim", pred, gt)?;
+    let [n, c, h, w] = pred.shape();
+    check_window("ssim", h, w)?;
+    let taps = gaussian_taps();
+    let plane = h * w;
+    Ok((0..n)
+        .map(|i| {
+            let (x, y) = (gt.image(i), pred.image(i));
+            let mut mean = vec![0.0; plane];
+            for ch in 0..c {
+                let r = ch * plane..(ch + 1) * plane;
+                for (m, v) in
+                    mean.iter_mut()
+                        .zip(channel_ssim_map(&x[r.clone()], &y[r], h, w, &taps))
+                {
+                    *m += v / c as f64;
+                }
+            }
+            mean
+        })
+        .collect())
+}
+
+/// Whether pixel `(y, x)` of an `h × w` image is inside the border [`ssim`] leaves out.
+pub fn ssim_interior(y: usize, x: usize, h: usize, w: usize) -> bool {
+    let pad = (SSIM_WIN_SIZE - 1) / 2;
+    y >= pad && x >= pad && y + pad < h && x + pad < w
+}
+
+/// Per-pixel SSIM of one channel (every pixel; the caller picks the interior).
+fn channel_ssim_map(x: &[f64], y: &[f64], h: usize, w: usize, taps: &[f64]) -> Vec<f64> {
     let np = (SSIM_WIN_SIZE * SSIM_WIN_SIZE) as f64;
     let cov_norm = np / (np - 1.0);
     let prod = |f: &dyn Fn(usize) -> f64| (0..h * w).map(f).collect::<Vec<f64>>();
@@ -123,12 +169,8 @@ fn channel_ssim(x: &[f64], y: &[f64], h: usize, w: usize, taps: &[f64]) -> f64 {
     let uxy = gaussian_filter(&prod(&|i| x[i] * y[i]), h, w, taps);
     let c1 = (K1 * DATA_RANGE).powi(2);
     let c2 = (K2 * DATA_RANGE).powi(2);
-    // skimage crops (win_size − 1) / 2 pixels on each side before averaging.
-    let pad = (SSIM_WIN_SIZE - 1) / 2;
-    let mut sum = 0.0;
-    for yy in pad..h - pad {
-        for xx in pad..w - pad {
-            let i = yy * w + xx;
+    (0..h * w)
+        .map(|i| {
             let vx = cov_norm * (uxx[i] - ux[i] * ux[i]);
             let vy = cov_norm * (uyy[i] - uy[i] * uy[i]);
             let vxy = cov_norm * (uxy[i] - ux[i] * uy[i]);
@@ -136,10 +178,9 @@ fn channel_ssim(x: &[f64], y: &[f64], h: usize, w: usize, taps: &[f64]) -> f64 {
             let a2 = 2.0 * vxy + c2;
             let b1 = ux[i] * ux[i] + uy[i] * uy[i] + c1;
             let b2 = vx + vy + c2;
-            sum += (a1 * a2) / (b1 * b2);
-        }
-    }
-    sum / ((h - 2 * pad) * (w - 2 * pad)) as f64
+            (a1 * a2) / (b1 * b2)
+        })
+        .collect()
 }
 
 #[cfg(test)]

@@ -129,3 +129,38 @@ fn rotation_weight_scales_only_the_quaternion_entries() {
         assert!(err.to_string().contains("rotation weight"), "{err}");
     }
 }
+
+/// Guards the region metrics against hand-computed values: PSNR over a mask uses only its
+/// pixels (an error confined outside it gives +inf inside, the exact dB outside), and SSIM
+/// over the whole image equals the mean of the per-pixel map inside the border.
+#[test]
+fn region_metrics_by_hand() {
+    use envision4d_losses::{masked_psnr, masked_ssim};
+    let (h, w) = (12, 12);
+    let gt = HostImages::new("gt", vec![0.5; 3 * h * w], [1, 3, h, w]).unwrap();
+    let mut p = vec![0.5; 3 * h * w];
+    // Pixel (0, 0) of every channel off by 0.1: outside the mask below.
+    for ch in 0..3 {
+        p[ch * h * w] = 0.6;
+    }
+    let pred = HostImages::new("pred", p, [1, 3, h, w]).unwrap();
+    let inside: Vec<bool> = (0..h * w).map(|i| i >= w).collect();
+    let outside: Vec<bool> = inside.iter().map(|b| !b).collect();
+    let psnr_in = masked_psnr(&pred, &gt, std::slice::from_ref(&inside)).unwrap()[0].unwrap();
+    assert!(psnr_in.is_infinite());
+    // Outside: 12 pixels x 3 channels, one of each channel off by 0.1: mse = 0.01 / 12.
+    let psnr_out = masked_psnr(&pred, &gt, std::slice::from_ref(&outside)).unwrap()[0].unwrap();
+    assert!(
+        (psnr_out - (-10.0 * (0.01f64 / 12.0).log10())).abs() < 1e-9,
+        "{psnr_out}"
+    );
+    assert_eq!(
+        masked_psnr(&pred, &gt, &[vec![false; h * w]]).unwrap(),
+        vec![None]
+    );
+    let all = vec![true; h * w];
+    let whole = masked_ssim(&pred, &gt, std::slice::from_ref(&all)).unwrap()[0].unwrap();
+    assert!((whole - ssim(&pred, &gt).unwrap()[0]).abs() < 1e-12);
+    // Row 0 lies wholly in SSIM's 5-pixel border: no score.
+    assert_eq!(masked_ssim(&pred, &gt, &[outside]).unwrap(), vec![None]);
+}
