@@ -64,6 +64,9 @@ pub struct FrameGt {
     pub lidar_points: Option<Vec<[f32; 3]>>,
     /// Scene flow to the next frame, world frame, metres, on the depth grid (synthetic only).
     pub flow: Option<FloatMap>,
+    /// Pixels of objects that move between this frame and the next, on the source grid
+    /// (`H·W`, row-major; synthetic only).
+    pub dynamic_mask: Option<Vec<bool>>,
 }
 
 /// A decoded clip.

@@ -109,17 +109,35 @@ pub fn resample_map(map: &DepthMap, k: &Intrinsics, size: (usize, usize)) -> Vec
 /// LiDAR path, an upscaled dense map keeps no holes and a downscaled one no foreground bias.
 /// Target pixels outside the source image get 0.
 pub fn sample_dense(map: &DepthMap, k: &Intrinsics, size: (usize, usize)) -> Vec<f32> {
-    let (mh, mw) = (map.map.height, map.map.width);
-    let src = &map.intrinsics;
     let channels = map.map.channels.max(1);
-    let mut grid = vec![0.0f32; size.0 * size.1];
+    let first: Vec<f32> = map.map.data.iter().step_by(channels).copied().collect();
+    sample_nearest(
+        &first,
+        (map.map.height, map.map.width),
+        &map.intrinsics,
+        k,
+        size,
+    )
+}
+
+/// Any per-pixel map of a source grid (`src_size`, intrinsics `src`) sampled at the pixel
+/// centres of an `(h, w)` grid of the same camera with intrinsics `k` (nearest source pixel;
+/// `T::default()` outside the source).
+pub fn sample_nearest<T: Copy + Default>(
+    data: &[T],
+    (mh, mw): (usize, usize),
+    src: &Intrinsics,
+    k: &Intrinsics,
+    size: (usize, usize),
+) -> Vec<T> {
+    let mut grid = vec![T::default(); size.0 * size.1];
     for y in 0..size.0 {
         // Same camera centre: the grids differ by a 2D affine map, independent of depth.
         let ys = (y as f64 + 0.5 - k.cy) / k.fy * src.fy + src.cy;
         for x in 0..size.1 {
             let xs = (x as f64 + 0.5 - k.cx) / k.fx * src.fx + src.cx;
             if xs >= 0.0 && ys >= 0.0 && xs < mw as f64 && ys < mh as f64 {
-                grid[y * size.1 + x] = map.map.data[(ys as usize * mw + xs as usize) * channels];
+                grid[y * size.1 + x] = data[ys as usize * mw + xs as usize];
             }
         }
     }

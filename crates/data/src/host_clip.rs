@@ -2,7 +2,7 @@
 //! CHW in [0, 1], with the ground truth the layout provides.
 
 use crate::clip::{Clip, FrameGt};
-use crate::depth_grid::{resample_map, sample_dense, splat_points, DepthSource};
+use crate::depth_grid::{resample_map, sample_dense, sample_nearest, splat_points, DepthSource};
 use crate::error::{DataError, Result};
 use crate::geom::{Intrinsics, Mat4};
 
@@ -23,6 +23,9 @@ pub struct HostClip {
     pub eval_depths: Vec<Option<Vec<f32>>>,
     /// Where `eval_depths` came from (the first frame's source; a clip does not mix them).
     pub eval_depth_source: Option<DepthSource>,
+    /// Per frame `H·W` ground-truth dynamic mask (objects moving to the next frame) on the
+    /// frame grid; `None` for a frame without one. Empty when the layout has none.
+    pub dynamic_masks: Vec<Option<Vec<bool>>>,
 }
 
 /// Interleaved RGB (HWC) to planar (CHW).
@@ -73,6 +76,14 @@ impl HostClip {
                 Some(grid)
             })
             .collect::<Vec<_>>();
+        let dynamic_masks = if clip.gt.iter().any(|g| g.dynamic_mask.is_some()) {
+            clip.gt
+                .iter()
+                .map(|g| dynamic_mask(g, clip.source_size, (h, w)))
+                .collect()
+        } else {
+            Vec::new()
+        };
         Ok(HostClip {
             height: h,
             width: w,
@@ -81,6 +92,7 @@ impl HostClip {
             depths,
             eval_depths,
             eval_depth_source,
+            dynamic_masks,
         })
     }
 }
@@ -98,4 +110,16 @@ fn eval_depth(g: &FrameGt, size: (usize, usize)) -> Option<(Vec<f32>, DepthSourc
     } else {
         (sample_dense(d, &k, size), DepthSource::Dense)
     })
+}
+
+/// One frame's dynamic mask on the `(h, w)` frame grid: copied when the grids agree, else
+/// sampled at the frame's pixel centres through the source intrinsics (those of its depth
+/// map, which shares the source grid); `None` without a mask or a way to map it.
+fn dynamic_mask(g: &FrameGt, source: (usize, usize), size: (usize, usize)) -> Option<Vec<bool>> {
+    let mask = g.dynamic_mask.as_ref()?;
+    if source == size {
+        return Some(mask.clone());
+    }
+    let (k, d) = (g.intrinsics?, g.depth.as_ref()?);
+    Some(sample_nearest(mask, source, &d.intrinsics, &k, size))
 }

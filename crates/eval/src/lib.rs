@@ -21,6 +21,7 @@ pub mod error;
 pub mod markdown;
 pub mod pose_error;
 pub mod protocol;
+pub mod regions;
 pub mod report;
 pub mod score;
 pub mod sweep;

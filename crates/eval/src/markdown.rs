@@ -94,6 +94,26 @@ fn mean_tables(s: &mut String, m: &ClipMetrics) {
         s,
         "\nAUC@30 is ×100. Pose errors are relative to frame 0; the translation error is after the clip's scale alignment (see the header; `trans_err_unaligned` in metrics.json without it).\n"
     );
+    if m.methods.iter().any(|x| x.dynamic_psnr.is_some()) {
+        let _ = writeln!(
+            s,
+            "Future frames on the ground-truth dynamic mask and on the rest:\n\n\
+             | method | dynamic PSNR (dB) | dynamic SSIM | static PSNR (dB) | static SSIM |\n\
+             |---|---|---|---|---|"
+        );
+        for x in &m.methods {
+            let _ = writeln!(
+                s,
+                "| {} | {} | {} | {} | {} |",
+                x.method.label(),
+                opt(x.dynamic_psnr, 2),
+                opt(x.dynamic_ssim, 4),
+                opt(x.static_psnr, 2),
+                opt(x.static_ssim, 4)
+            );
+        }
+        let _ = writeln!(s);
+    }
     let _ = writeln!(s, "## Per future horizon (mean over clips)\n");
     let _ = writeln!(
         s,

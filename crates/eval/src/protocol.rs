@@ -16,6 +16,7 @@ use crate::pose_error::{
     extrinsics_tensor, host_extrinsics, pose_error, relative_to_first, to_extrinsic,
     translation_scale,
 };
+use crate::regions::region_scores;
 use crate::report::{
     mean, mean_opt, ClipMetrics, DepthScore, HorizonScore, Method, MethodScore, Timing,
 };
@@ -78,6 +79,14 @@ pub fn evaluate_clip(
         (clip.cameras.len() >= n).then(|| clip.cameras[..n].iter().map(|c| c.0).collect());
     let scorer = Scorer {
         gt: &gt_future,
+        masks: if clip.dynamic_masks.is_empty() {
+            Vec::new()
+        } else {
+            future
+                .iter()
+                .map(|&j| clip.dynamic_masks.get(j).and_then(Option::as_ref))
+                .collect()
+        },
         gt_poses: gt_poses.as_deref(),
         context: tc,
         opts,
@@ -161,6 +170,8 @@ fn baselines(
 /// Scores future frames and poses of any method against one clip's ground truth.
 struct Scorer<'a> {
     gt: &'a HostImages,
+    /// The scored frames' dynamic masks (empty when the clip has none).
+    masks: Vec<Option<&'a Vec<bool>>>,
     gt_poses: Option<&'a [Mat4]>,
     context: usize,
     opts: &'a EvalOptions,
@@ -175,6 +186,7 @@ impl Scorer<'_> {
         time_s: f64,
     ) -> Result<MethodScore> {
         let m = evaluate_images(images, self.gt, self.opts.crop, &self.opts.lpips)?;
+        let regions = region_scores(images, self.gt, &self.masks, self.opts.crop)?;
         let tc = self.context;
         // Cameras are up to scale: one scale per clip maps the predicted camera centres onto
         // the true ones (`translation_scale`) before the translation error is taken.
@@ -221,6 +233,10 @@ impl Scorer<'_> {
             trans_err: mean_opt(per_horizon.iter().map(|h| h.trans_err)),
             trans_err_unaligned: mean_opt(per_horizon.iter().map(|h| h.trans_err_unaligned)),
             pose_scale: errors.as_ref().map(|e| e.2),
+            dynamic_psnr: regions.dynamic_psnr,
+            dynamic_ssim: regions.dynamic_ssim,
+            static_psnr: regions.static_psnr,
+            static_ssim: regions.static_ssim,
             camera_auc30: auc,
             time_s,
             per_horizon,

@@ -63,6 +63,12 @@ pub struct MethodScore {
     pub trans_err_unaligned: Option<f64>,
     /// The scale applied to the predicted camera centres before `trans_err`.
     pub pose_scale: Option<f64>,
+    /// PSNR / SSIM on the ground-truth dynamic mask of the scored frames and on the rest
+    /// (`regions`); `None` without masks or where a region is empty.
+    pub dynamic_psnr: Option<f64>,
+    pub dynamic_ssim: Option<f64>,
+    pub static_psnr: Option<f64>,
+    pub static_ssim: Option<f64>,
     /// Over all `T_c + T_f` cameras; `None` without ground-truth poses.
     pub camera_auc30: Option<f64>,
     /// Seconds this method spent on the clip (encoder + its renders).
@@ -295,6 +301,10 @@ fn mean_method(method: Method, all: &[&MethodScore]) -> MethodScore {
         trans_err: mean_opt(all.iter().map(|m| m.trans_err)),
         trans_err_unaligned: mean_opt(all.iter().map(|m| m.trans_err_unaligned)),
         pose_scale: mean_opt(all.iter().map(|m| m.pose_scale)),
+        dynamic_psnr: mean_opt(all.iter().map(|m| m.dynamic_psnr)),
+        dynamic_ssim: mean_opt(all.iter().map(|m| m.dynamic_ssim)),
+        static_psnr: mean_opt(all.iter().map(|m| m.static_psnr)),
+        static_ssim: mean_opt(all.iter().map(|m| m.static_ssim)),
         camera_auc30: mean_opt(all.iter().map(|m| m.camera_auc30)),
         time_s: mean(all.iter().map(|m| m.time_s)),
         per_horizon,

@@ -356,6 +356,7 @@ pub fn load_nuscenes_gt(
                 depth: None,
                 lidar_points,
                 flow: None,
+                dynamic_mask: None,
             })
         })
         .collect()

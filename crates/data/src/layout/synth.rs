@@ -170,6 +170,21 @@ pub fn scan(root: &Path, spec: &ClipSpec, stride: usize) -> Result<Scan> {
     Ok(scan)
 }
 
+/// A `dynamic_mask/*.png` (8-bit, 255 = moving) as booleans; it must have the frame's size.
+fn read_mask(path: &Path, (h, w): (usize, usize)) -> Result<Vec<bool>> {
+    let bytes = std::fs::read(path).map_err(|e| DataError::gt(path, e.to_string()))?;
+    let img = image::load_from_memory(&bytes)
+        .map_err(|e| DataError::gt(path, e.to_string()))?
+        .to_luma8();
+    if (img.height() as usize, img.width() as usize) != (h, w) {
+        return Err(DataError::gt(path, "mask size differs from the frame size"));
+    }
+    Ok(img.into_raw().iter().map(|&v| v >= MASK_ON).collect())
+}
+
+/// Mask values at or above this are "moving" (the writer uses 0 and 255).
+const MASK_ON: u8 = 128;
+
 /// Cameras, depth and flow of the given frames of a synthetic clip.
 pub fn load_synth_gt(
     dir: &Path,
@@ -223,6 +238,10 @@ pub fn load_synth_gt(
             }),
             lidar_points: None,
             flow: Some(flow),
+            dynamic_mask: Some(read_mask(
+                &dir.join(MASK_DIR).join(frame_name(t, "png")),
+                source_size,
+            )?),
         });
     }
     Ok(out)

@@ -318,6 +318,7 @@ pub fn load_storm_gt(
             depth,
             lidar_points,
             flow: None,
+            dynamic_mask: None,
         });
     }
     Ok(out)
