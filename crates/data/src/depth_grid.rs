@@ -9,7 +9,9 @@
 //! land in one pixel the nearest wins, as a z-buffer would (the others are occluded there).
 
 use crate::clip::DepthMap;
-use crate::geom::{Intrinsics, Vec3};
+use crate::error::{DataError, Result};
+use crate::geom::{Intrinsics, Mat4, Vec3};
+use std::path::Path;
 
 /// How far two intrinsics may differ and still count as the same grid (pixels).
 const SAME_GRID_TOLERANCE: f64 = 1e-9;
@@ -40,6 +42,48 @@ impl DepthSource {
 /// the corner of four full-resolution pixels) lands right and below of it, whatever the
 /// rounding of the projection; far above that rounding (~1e-13 px), far below a pixel.
 const EDGE_NUDGE_PX: f64 = 1e-6;
+
+/// A LiDAR file of little-endian float32 records of `columns` floats (STORM's `lidar/*.bin`,
+/// nuScenes' `.pcd.bin`), the point at columns `xyz..xyz + 3`, moved into the camera frame by
+/// `to_camera`; only points in front of the camera are kept. A truncated file or a
+/// non-finite point is an error naming the file (and the record).
+pub fn read_lidar_records(
+    path: &Path,
+    columns: usize,
+    xyz: usize,
+    to_camera: &Mat4,
+) -> Result<Vec<[f32; 3]>> {
+    let bytes = std::fs::read(path).map_err(|e| DataError::gt(path, e.to_string()))?;
+    let record = columns * 4;
+    if bytes.len() % record != 0 {
+        return Err(DataError::gt(
+            path,
+            format!(
+                "{} bytes is not a whole number of {columns}-float records",
+                bytes.len()
+            ),
+        ));
+    }
+    let mut out = Vec::with_capacity(bytes.len() / record);
+    for (idx, rec) in bytes.chunks_exact(record).enumerate() {
+        let f = |c: usize| {
+            let at = 4 * (xyz + c);
+            f32::from_le_bytes([rec[at], rec[at + 1], rec[at + 2], rec[at + 3]])
+        };
+        let (x, y, z) = (f(0), f(1), f(2));
+        if !(x.is_finite() && y.is_finite() && z.is_finite()) {
+            return Err(DataError::gt(
+                path,
+                format!("LiDAR record {idx} is not finite"),
+            ));
+        }
+        let p = to_camera.transform_point(Vec3::new(x as f64, y as f64, z as f64));
+        if p.z > 0.0 {
+            out.push([p.x as f32, p.y as f32, p.z as f32]);
+        }
+    }
+    Ok(out)
+}
 
 /// Writes z-depth `z` at continuous pixel `(x, y)` into `grid` (H·W) if it falls inside and
 /// is nearer than what the pixel holds.

@@ -16,8 +16,9 @@ use super::nuscenes_tables::{
 };
 use super::{window_starts, ClipEntry, GtSource, Scan};
 use crate::clip::{ClipSpec, FrameGt};
+use crate::depth_grid::read_lidar_records;
 use crate::error::{DataError, Result};
-use crate::geom::{Intrinsics, Mat4, Vec3};
+use crate::geom::{Intrinsics, Mat4};
 use crate::resize::Fit;
 use std::collections::{HashMap, HashSet};
 use std::path::{Path, PathBuf};
@@ -362,36 +363,7 @@ pub fn load_nuscenes_gt(
         .collect()
 }
 
-/// A `.pcd.bin` sweep (float32 records of [`PCD_BIN_COLUMNS`], LiDAR frame) as points in the
-/// camera frame; only points in front of the camera are kept.
+/// A `.pcd.bin` sweep (records of [`PCD_BIN_COLUMNS`] floats, LiDAR frame) in the camera frame.
 fn read_pcd_bin(path: &Path, to_cam: &Mat4) -> Result<Vec<[f32; 3]>> {
-    let bytes = std::fs::read(path).map_err(|e| DataError::gt(path, e.to_string()))?;
-    let record = PCD_BIN_COLUMNS * 4;
-    if bytes.len() % record != 0 {
-        return Err(DataError::gt(
-            path,
-            format!(
-                "{} bytes is not a whole number of {PCD_BIN_COLUMNS}-float points",
-                bytes.len()
-            ),
-        ));
-    }
-    let mut out = Vec::with_capacity(bytes.len() / record);
-    for (idx, rec) in bytes.chunks_exact(record).enumerate() {
-        let f = |c: usize| {
-            f32::from_le_bytes([rec[4 * c], rec[4 * c + 1], rec[4 * c + 2], rec[4 * c + 3]])
-        };
-        let (x, y, z) = (f(0), f(1), f(2));
-        if !(x.is_finite() && y.is_finite() && z.is_finite()) {
-            return Err(DataError::gt(
-                path,
-                format!("LiDAR point {idx} is not finite"),
-            ));
-        }
-        let p = to_cam.transform_point(Vec3::new(x as f64, y as f64, z as f64));
-        if p.z > 0.0 {
-            out.push([p.x as f32, p.y as f32, p.z as f32]);
-        }
-    }
-    Ok(out)
+    read_lidar_records(path, PCD_BIN_COLUMNS, 0, to_cam)
 }

@@ -5,6 +5,7 @@
 
 use super::{read_dir_sorted, ClipEntry, GtSource, Scan};
 use crate::clip::{ClipSpec, DepthMap, FrameGt};
+use crate::depth_grid::read_lidar_records;
 use crate::error::{DataError, Result};
 use crate::exr_io::FloatMap;
 use crate::frame::is_frame_file;
@@ -326,50 +327,16 @@ pub fn load_storm_gt(
 
 /// Columns of one STORM LiDAR record: origin xyz, point xyz, flow xyz, flow class.
 pub const LIDAR_COLUMNS: usize = 10;
-/// Columns of the point itself within a record.
-const LIDAR_POINT: std::ops::Range<usize> = 3..6;
+/// First column of the point itself within a record.
+const LIDAR_POINT: usize = 3;
 
-/// `lidar/<t>.bin` (float32 records of [`LIDAR_COLUMNS`], points in the vehicle frame of
-/// that timestep) as points in the OpenCV camera frame; only points in front of the camera
-/// are kept.
+/// `lidar/<t>.bin` (points in the vehicle frame of that timestep) in the OpenCV camera frame.
 fn read_lidar_points(path: &Path, cam_to_ego: &Mat4) -> Result<Vec<[f32; 3]>> {
-    let bytes = std::fs::read(path).map_err(|e| DataError::gt(path, e.to_string()))?;
-    let record = LIDAR_COLUMNS * 4;
-    if bytes.len() % record != 0 {
-        return Err(DataError::gt(
-            path,
-            format!(
-                "{} bytes is not a whole number of {LIDAR_COLUMNS}-float records",
-                bytes.len()
-            ),
-        ));
-    }
     // Vehicle -> Waymo camera axes -> OpenCV camera axes.
     let ego_to_cv = OPENCV_TO_WAYMO_CAMERA
         .rigid_inverse()
         .mul(&cam_to_ego.rigid_inverse());
-    let mut out = Vec::with_capacity(bytes.len() / record);
-    for (idx, rec) in bytes.chunks_exact(record).enumerate() {
-        let f = |c: usize| {
-            f32::from_le_bytes([rec[4 * c], rec[4 * c + 1], rec[4 * c + 2], rec[4 * c + 3]])
-        };
-        let [x, y, z] = [
-            f(LIDAR_POINT.start),
-            f(LIDAR_POINT.start + 1),
-            f(LIDAR_POINT.end - 1),
-        ];
-        if !(x.is_finite() && y.is_finite() && z.is_finite()) {
-            return Err(DataError::gt(
-                path,
-                format!("LiDAR record {idx} is not finite"),
-            ));
-        }
-        let p = ego_to_cv.transform_point(crate::geom::Vec3::new(x as f64, y as f64, z as f64));
-        if p.z > 0.0 {
-            out.push([p.x as f32, p.y as f32, p.z as f32]);
-        }
-    }
-    Ok(out)
+    read_lidar_records(path, LIDAR_COLUMNS, LIDAR_POINT, &ego_to_cv)
 }
 
 /// Channel 0 of `depth_flows_4/*.npy` (H/4, W/4, 4): mean LiDAR z-depth, 0 = no return.
