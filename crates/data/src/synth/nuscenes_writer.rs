@@ -8,7 +8,7 @@
 //! Every frame is a keyframe (our clips are 10 Hz; the timestamps say so). The LiDAR is the
 //! STORM writer's scan-line pattern, as points in the LiDAR's own frame.
 
-use super::storm_writer::{BEAM_ROW_STEP, LIDAR_RANGE_M, POINT_COLUMN_STEP};
+use super::storm_writer::{lidar_returns, POINT_COLUMN_STEP};
 use super::{ClipRender, FRAME_INTERVAL_S};
 use crate::atomic::{create_dir, write_bytes};
 use crate::error::{DataError, Result};
@@ -211,12 +211,8 @@ pub fn write_nuscenes_scenes(
             let pcd = format!("samples/{LIDAR_CHANNEL}/{name}__{LIDAR_CHANNEL}__{ts}.pcd.bin");
             let cv_to_lidar = lidar_from_ego.mul(&cam_to_ego);
             let mut points: Vec<f32> = Vec::new();
-            for v in (0..h).step_by(BEAM_ROW_STEP) {
-                for u in (0..w).step_by(POINT_COLUMN_STEP) {
-                    let z = frame.depth[v * w + u];
-                    if !(z > 0.0 && z <= LIDAR_RANGE_M) {
-                        continue;
-                    }
+            for (u, v, z) in lidar_returns(&frame.depth, w, h) {
+                if u % POINT_COLUMN_STEP == 0 {
                     let p = cv_to_lidar.transform_point(k.unproject(
                         u as f64 + 0.5,
                         v as f64 + 0.5,

@@ -44,6 +44,21 @@ pub fn camera_to_ego() -> Mat4 {
     )
 }
 
+/// The fake LiDAR's returns of a frame's exact z-depth `depth` (`w × h`): `(u, v, z)` on every
+/// [`BEAM_ROW_STEP`]-th row, where there is a surface within [`LIDAR_RANGE_M`].
+pub fn lidar_returns(
+    depth: &[f32],
+    w: usize,
+    h: usize,
+) -> impl Iterator<Item = (usize, usize, f32)> + '_ {
+    (0..h).step_by(BEAM_ROW_STEP).flat_map(move |v| {
+        (0..w).filter_map(move |u| {
+            let z = depth[v * w + u];
+            (z > 0.0 && z <= LIDAR_RANGE_M).then_some((u, v, z))
+        })
+    })
+}
+
 fn matrix_text(m: &Mat4) -> String {
     m.0.iter()
         .map(|row| row.map(|v| v.to_string()).join(" "))
@@ -127,33 +142,27 @@ pub fn write_storm_scene(scene_dir: &Path, clip: &ClipRender) -> Result<()> {
         let mut grid = vec![0.0f32; hq * wq * DEPTH_FLOW_CHANNELS];
         let mut count = vec![0u32; hq * wq];
         let mut records: Vec<f32> = Vec::new();
-        for v in (0..h).step_by(BEAM_ROW_STEP) {
-            for u in 0..w {
-                let i = v * w + u;
-                let z = frame.depth[i];
-                if !(z > 0.0 && z <= LIDAR_RANGE_M) {
-                    continue;
-                }
-                let f = &frame.flow[i * 3..i * 3 + 3];
-                let flow_world = Vec3::new(f[0] as f64, f[1] as f64, f[2] as f64);
-                let flow = rotate(&world_to_ego, flow_world);
-                // The quarter cell whose area holds this pixel's centre.
-                let vq = (((v as f64 + 0.5) * hq as f64 / h as f64) as usize).min(hq - 1);
-                let uq = (((u as f64 + 0.5) * wq as f64 / w as f64) as usize).min(wq - 1);
-                let c = vq * wq + uq;
-                count[c] += 1;
-                let cell = &mut grid[c * DEPTH_FLOW_CHANNELS..(c + 1) * DEPTH_FLOW_CHANNELS];
-                for (slot, val) in cell.iter_mut().zip([z as f64, flow.x, flow.y, flow.z]) {
-                    *slot += val as f32;
-                }
-                if u % POINT_COLUMN_STEP == 0 {
-                    let p_cv = k.unproject(u as f64 + 0.5, v as f64 + 0.5, z as f64);
-                    let p = cv_to_ego.transform_point(p_cv);
-                    let class = if frame.instance[i] > 0 { 1.0 } else { 0.0 };
-                    records.extend(LIDAR_MOUNT);
-                    records.extend([p.x, p.y, p.z, flow.x, flow.y, flow.z].map(|x| x as f32));
-                    records.push(class);
-                }
+        for (u, v, z) in lidar_returns(&frame.depth, w, h) {
+            let i = v * w + u;
+            let f = &frame.flow[i * 3..i * 3 + 3];
+            let flow_world = Vec3::new(f[0] as f64, f[1] as f64, f[2] as f64);
+            let flow = rotate(&world_to_ego, flow_world);
+            // The quarter cell whose area holds this pixel's centre.
+            let vq = (((v as f64 + 0.5) * hq as f64 / h as f64) as usize).min(hq - 1);
+            let uq = (((u as f64 + 0.5) * wq as f64 / w as f64) as usize).min(wq - 1);
+            let c = vq * wq + uq;
+            count[c] += 1;
+            let cell = &mut grid[c * DEPTH_FLOW_CHANNELS..(c + 1) * DEPTH_FLOW_CHANNELS];
+            for (slot, val) in cell.iter_mut().zip([z as f64, flow.x, flow.y, flow.z]) {
+                *slot += val as f32;
+            }
+            if u % POINT_COLUMN_STEP == 0 {
+                let p_cv = k.unproject(u as f64 + 0.5, v as f64 + 0.5, z as f64);
+                let p = cv_to_ego.transform_point(p_cv);
+                let class = if frame.instance[i] > 0 { 1.0 } else { 0.0 };
+                records.extend(LIDAR_MOUNT);
+                records.extend([p.x, p.y, p.z, flow.x, flow.y, flow.z].map(|x| x as f32));
+                records.push(class);
             }
         }
         for (c, &n) in count.iter().enumerate().filter(|(_, n)| **n > 0) {
