@@ -5,7 +5,7 @@
 use crate::error::Result;
 use crate::report::mean_opt;
 use crate::score::reported_psnr;
-use envision4d_losses::{masked_psnr, masked_ssim, EvalCrop, HostImages};
+use envision4d_losses::{masked_psnr, masked_ssims, EvalCrop, HostImages};
 
 /// Means over the scored frames whose region is not empty.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -50,12 +50,16 @@ pub fn region_scores(
                 .map(|v| v.map(reported_psnr)),
         ))
     };
-    let ssim = |m: &[Vec<bool>]| -> Result<Option<f64>> { Ok(mean_opt(masked_ssim(&p, &g, m)?)) };
+    // One SSIM map per frame serves both regions.
+    let mut ssims = masked_ssims(&p, &g, &[&cropped, &inverse])?
+        .into_iter()
+        .map(mean_opt);
+    let (dynamic_ssim, static_ssim) = (ssims.next().flatten(), ssims.next().flatten());
     Ok(RegionScores {
         dynamic_psnr: psnr(&cropped)?,
-        dynamic_ssim: ssim(&cropped)?,
+        dynamic_ssim,
         static_psnr: psnr(&inverse)?,
-        static_ssim: ssim(&inverse)?,
+        static_ssim,
     })
 }
 

@@ -42,7 +42,7 @@ pub use host::{HostDepths, HostImages};
 pub use lpips::{Lpips, LpipsNet, LpipsStatus, LpipsWeights};
 pub use mse::mse_per_frame;
 pub use psnr::{psnr, psnr_from_mse};
-pub use region::{masked_psnr, masked_ssim};
+pub use region::{masked_psnr, masked_ssim, masked_ssims};
 pub use rgb::{RgbLoss, RgbTerms, LPIPS_LOSS_WEIGHT};
 pub use ssim::{ssim, ssim_interior, ssim_maps, SSIM_WIN_SIZE};
 pub use ssim_loss::ssim_per_frame;

@@ -60,18 +60,34 @@ pub fn masked_ssim(
     gt: &HostImages,
     masks: &[Vec<bool>],
 ) -> Result<Vec<Option<f64>>> {
-    check_masks(pred, masks)?;
+    Ok(masked_ssims(pred, gt, &[masks])?.remove(0))
+}
+
+/// [`masked_ssim`] for several sets of masks (e.g. a region and its complement), from one
+/// SSIM map per image: the map is the costly part.
+pub fn masked_ssims(
+    pred: &HostImages,
+    gt: &HostImages,
+    mask_sets: &[&[Vec<bool>]],
+) -> Result<Vec<Vec<Option<f64>>>> {
+    for masks in mask_sets {
+        check_masks(pred, masks)?;
+    }
     let [_, _, h, w] = pred.shape();
     let maps = ssim_maps(pred, gt)?;
-    Ok(maps
+    Ok(mask_sets
         .iter()
-        .zip(masks)
-        .map(|(map, m)| {
-            let vals: Vec<f64> = (0..h * w)
-                .filter(|&px| m[px] && ssim_interior(px / w, px % w, h, w))
-                .map(|px| map[px])
-                .collect();
-            (!vals.is_empty()).then(|| vals.iter().sum::<f64>() / vals.len() as f64)
+        .map(|masks| {
+            maps.iter()
+                .zip(masks.iter())
+                .map(|(map, m)| {
+                    let vals: Vec<f64> = (0..h * w)
+                        .filter(|&px| m[px] && ssim_interior(px / w, px % w, h, w))
+                        .map(|px| map[px])
+                        .collect();
+                    (!vals.is_empty()).then(|| vals.iter().sum::<f64>() / vals.len() as f64)
+                })
+                .collect()
         })
         .collect())
 }
