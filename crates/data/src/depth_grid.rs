@@ -114,12 +114,10 @@ pub fn splat_points(points: &[[f32; 3]], k: &Intrinsics, size: (usize, usize)) -
     grid
 }
 
-/// A depth map on its own grid moved onto an `(h, w)` grid with intrinsics `k` (see the
-/// module comment). A map already on that grid is copied unchanged.
-pub fn resample_map(map: &DepthMap, k: &Intrinsics, size: (usize, usize)) -> Vec<f32> {
-    let (mh, mw) = (map.map.height, map.map.width);
+/// The map's first channel when it already lies on the `(h, w)` grid with intrinsics `k`.
+fn on_same_grid(map: &DepthMap, k: &Intrinsics, size: (usize, usize)) -> Option<Vec<f32>> {
     let src = &map.intrinsics;
-    let same = (mh, mw) == size
+    let same = (map.map.height, map.map.width) == size
         && [
             (src.fx, k.fx),
             (src.fy, k.fy),
@@ -129,9 +127,18 @@ pub fn resample_map(map: &DepthMap, k: &Intrinsics, size: (usize, usize)) -> Vec
         .iter()
         .all(|(a, b)| (a - b).abs() <= SAME_GRID_TOLERANCE);
     let channels = map.map.channels.max(1);
-    if same {
-        return (0..mh * mw).map(|i| map.map.data[i * channels]).collect();
+    same.then(|| map.map.data.iter().step_by(channels).copied().collect())
+}
+
+/// A depth map on its own grid moved onto an `(h, w)` grid with intrinsics `k` (see the
+/// module comment). A map already on that grid is copied unchanged.
+pub fn resample_map(map: &DepthMap, k: &Intrinsics, size: (usize, usize)) -> Vec<f32> {
+    if let Some(copy) = on_same_grid(map, k, size) {
+        return copy;
     }
+    let (mh, mw) = (map.map.height, map.map.width);
+    let src = &map.intrinsics;
+    let channels = map.map.channels.max(1);
     let mut grid = vec![0.0f32; size.0 * size.1];
     for v in 0..mh {
         for u in 0..mw {
@@ -153,6 +160,9 @@ pub fn resample_map(map: &DepthMap, k: &Intrinsics, size: (usize, usize)) -> Vec
 /// LiDAR path, an upscaled dense map keeps no holes and a downscaled one no foreground bias.
 /// Target pixels outside the source image get 0.
 pub fn sample_dense(map: &DepthMap, k: &Intrinsics, size: (usize, usize)) -> Vec<f32> {
+    if let Some(copy) = on_same_grid(map, k, size) {
+        return copy;
+    }
     let channels = map.map.channels.max(1);
     let first: Vec<f32> = map.map.data.iter().step_by(channels).copied().collect();
     sample_nearest(
