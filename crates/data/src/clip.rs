@@ -67,6 +67,10 @@ pub struct FrameGt {
     /// Pixels of objects that move between this frame and the next, on the source grid
     /// (`H·W`, row-major; synthetic only).
     pub dynamic_mask: Option<Vec<bool>>,
+    /// Object id per pixel (0 = static scenery or sky), on the source grid (synthetic only).
+    pub instance: Option<Vec<u16>>,
+    /// Every tracked object's box pose at this frame (synthetic only; `motion_truth`).
+    pub objects: Option<Vec<crate::motion_truth::ObjectPose>>,
 }
 
 /// A decoded clip.

@@ -5,6 +5,7 @@ use crate::clip::{Clip, FrameGt};
 use crate::depth_grid::{resample_map, sample_dense, sample_nearest, splat_points, DepthSource};
 use crate::error::{DataError, Result};
 use crate::geom::{Intrinsics, Mat4};
+use crate::motion_truth::FrameMotionTruth;
 
 /// One clip on the host: frames CHW in [0, 1], optional ground truth.
 #[derive(Debug, Clone)]
@@ -26,6 +27,9 @@ pub struct HostClip {
     /// Per frame `H·W` ground-truth dynamic mask (objects moving to the next frame) on the
     /// frame grid; `None` for a frame without one. Empty when the layout has none.
     pub dynamic_masks: Vec<Option<Vec<bool>>>,
+    /// Per frame: what exact scene flow between any two frames needs, on the frame grid
+    /// (`motion_truth`); `None` for a frame without it. Empty when the layout has none.
+    pub motion_truth: Vec<Option<FrameMotionTruth>>,
 }
 
 /// Interleaved RGB (HWC) to planar (CHW).
@@ -84,6 +88,14 @@ impl HostClip {
         } else {
             Vec::new()
         };
+        let motion_truth = if clip.gt.iter().any(|g| g.objects.is_some()) {
+            clip.gt
+                .iter()
+                .map(|g| motion_truth(g, clip.source_size, (h, w)))
+                .collect()
+        } else {
+            Vec::new()
+        };
         Ok(HostClip {
             height: h,
             width: w,
@@ -93,6 +105,7 @@ impl HostClip {
             eval_depths,
             eval_depth_source,
             dynamic_masks,
+            motion_truth,
         })
     }
 }
@@ -122,4 +135,30 @@ fn dynamic_mask(g: &FrameGt, source: (usize, usize), size: (usize, usize)) -> Op
     }
     let (k, d) = (g.intrinsics?, g.depth.as_ref()?);
     Some(sample_nearest(mask, source, &d.intrinsics, &k, size))
+}
+
+/// One frame's motion truth on the `(h, w)` frame grid, from its dense depth, instance map,
+/// camera and object poses; `None` when any of them is missing or the depth is sparse
+/// (LiDAR cells have no surface behind every pixel).
+fn motion_truth(
+    g: &FrameGt,
+    source: (usize, usize),
+    size: (usize, usize),
+) -> Option<FrameMotionTruth> {
+    let (k, w2c, d) = (g.intrinsics?, g.world_to_camera?, g.depth.as_ref()?);
+    let (instance, objects) = (g.instance.as_ref()?, g.objects.clone()?);
+    let grid = (d.map.height, d.map.width);
+    if d.sparse || grid != source || d.map.channels != 1 || instance.len() != grid.0 * grid.1 {
+        return None;
+    }
+    Some(FrameMotionTruth::from_maps(
+        &d.map.data,
+        instance,
+        grid,
+        &d.intrinsics,
+        &k,
+        size,
+        w2c,
+        objects,
+    ))
 }

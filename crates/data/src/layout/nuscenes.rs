@@ -358,6 +358,8 @@ pub fn load_nuscenes_gt(
                 lidar_points,
                 flow: None,
                 dynamic_mask: None,
+                instance: None,
+                objects: None,
             })
         })
         .collect()

@@ -7,6 +7,7 @@ use crate::clip::{ClipSpec, DepthMap, FrameGt};
 use crate::error::{DataError, Result};
 use crate::exr_io::{read_gray, read_xyz};
 use crate::geom::{Intrinsics, Mat4};
+use crate::motion_truth::poses_at;
 use crate::resize::Fit;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
@@ -182,6 +183,34 @@ fn read_mask(path: &Path, (h, w): (usize, usize)) -> Result<Vec<bool>> {
     Ok(img.into_raw().iter().map(|&v| v >= MASK_ON).collect())
 }
 
+/// `tracks.json`'s tracks; `None` when the clip has no such file (a tree written before
+/// tracks existed has no pairwise flow truth, nothing else is lost). A file that is there but
+/// does not parse is an error naming it.
+fn read_tracks(path: &Path) -> Result<Option<Vec<Track>>> {
+    if !path.exists() {
+        return Ok(None);
+    }
+    Ok(Some(read_json::<TracksFile>(path)?.tracks))
+}
+
+/// An `instance/*.png` (16-bit object ids) of the frame's size; `None` when absent.
+fn read_instance(path: &Path, (h, w): (usize, usize)) -> Result<Option<Vec<u16>>> {
+    if !path.exists() {
+        return Ok(None);
+    }
+    let bytes = std::fs::read(path).map_err(|e| DataError::gt(path, e.to_string()))?;
+    let img = image::load_from_memory(&bytes)
+        .map_err(|e| DataError::gt(path, e.to_string()))?
+        .to_luma16();
+    if (img.height() as usize, img.width() as usize) != (h, w) {
+        return Err(DataError::gt(
+            path,
+            "instance map size differs from the frame size",
+        ));
+    }
+    Ok(Some(img.into_raw()))
+}
+
 /// Mask values at or above this are "moving" (the writer uses 0 and 255).
 const MASK_ON: u8 = 128;
 
@@ -203,6 +232,7 @@ pub fn load_synth_gt(
             ),
         ));
     }
+    let tracks = read_tracks(&dir.join(TRACKS_FILE))?;
     let mut out = Vec::with_capacity(indices.len());
     for &t in indices {
         let cam = cams
@@ -242,6 +272,14 @@ pub fn load_synth_gt(
                 &dir.join(MASK_DIR).join(frame_name(t, "png")),
                 source_size,
             )?),
+            instance: match &tracks {
+                Some(_) => read_instance(
+                    &dir.join(INSTANCE_DIR).join(frame_name(t, "png")),
+                    source_size,
+                )?,
+                None => None,
+            },
+            objects: tracks.as_ref().map(|tr| poses_at(tr, t)),
         });
     }
     Ok(out)

@@ -320,6 +320,8 @@ pub fn load_storm_gt(
             lidar_points,
             flow: None,
             dynamic_mask: None,
+            instance: None,
+            objects: None,
         });
     }
     Ok(out)

@@ -4,12 +4,14 @@
 //! It shares no code with `envision4d-splat`: it is the judge of that rasterizer.
 
 pub mod camera;
+pub mod footprint;
 pub mod motion;
 pub mod nuscenes_writer;
 pub mod preset;
 pub mod road;
 pub mod shapes;
 pub mod storm_writer;
+pub mod suite;
 pub mod texture;
 pub mod trace;
 pub mod world;

@@ -1,6 +1,7 @@
 //! How things move: the ego camera and agents, all as closed-form functions of time, so
-//! any frame (and the next one, for scene flow) is exact. Every agent motion is
-//! non-linear on purpose: constant-velocity extrapolation must be measurably wrong.
+//! any frame (and the next one, for scene flow) is exact. Agent motions are non-linear on
+//! purpose (constant-velocity extrapolation must be measurably wrong), except the motion
+//! suite's control preset, which drives `Lane` and `Crossing` at constant speed.
 
 use super::road::Road;
 use crate::geom::Vec3;
@@ -73,6 +74,22 @@ pub enum Motion {
         wobble: f64,
         period: f64,
     },
+    /// Stop-and-go along the road at lateral offset `lateral`: speed
+    /// `v_peak·(1 − cos(omega·t + phase))/2`, from standstill to `v_peak` and back every
+    /// `2π/omega` seconds (traffic in a queue).
+    StopGo {
+        s0: f64,
+        v_peak: f64,
+        omega: f64,
+        phase: f64,
+        direction: f64,
+        lateral: f64,
+    },
+}
+
+/// Distance a stop-and-go agent has covered after `t` s (the integral of its speed).
+fn stop_go_distance(v_peak: f64, omega: f64, phase: f64, t: f64) -> f64 {
+    0.5 * v_peak * (t - ((omega * t + phase).sin() - phase.sin()) / omega)
 }
 
 impl Motion {
@@ -148,6 +165,26 @@ impl Motion {
                     yaw: rp.heading + direction * FRAC_PI_2,
                 }
             }
+            Motion::StopGo {
+                s0,
+                v_peak,
+                omega,
+                phase,
+                direction,
+                lateral,
+            } => {
+                let s = s0 + direction * stop_go_distance(v_peak, omega, phase, t);
+                let rp = road.pose(s, lateral);
+                let back = if direction < 0.0 {
+                    std::f64::consts::PI
+                } else {
+                    0.0
+                };
+                Pose {
+                    position: Vec3::new(rp.x, rp.y, 0.0),
+                    yaw: rp.heading + back,
+                }
+            }
         }
     }
 }
@@ -179,5 +216,33 @@ impl LookAround {
             return 0.0;
         }
         self.amplitude * (self.omega * t_s + self.phase).sin()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Guards the stop-and-go distance: it is the integral of the stated speed (checked by
+    /// finite differences) and never decreases (a queue never reverses).
+    #[test]
+    fn stop_go_distance_integrates_its_speed() {
+        let (v, w, ph) = (6.0, 2.5, 0.7);
+        let mut last = stop_go_distance(v, w, ph, 0.0);
+        assert_eq!(last, 0.0);
+        for k in 1..200 {
+            let t = k as f64 * 0.01;
+            let d = stop_go_distance(v, w, ph, t);
+            assert!(d >= last - 1e-12, "moved backwards at {t}");
+            let h = 1e-5;
+            let speed =
+                (stop_go_distance(v, w, ph, t + h) - stop_go_distance(v, w, ph, t - h)) / (2.0 * h);
+            let want = v * (1.0 - (w * t + ph).cos()) / 2.0;
+            assert!(
+                (speed - want).abs() < 1e-6,
+                "speed {speed} vs {want} at {t}"
+            );
+            last = d;
+        }
     }
 }

@@ -36,10 +36,20 @@ pub enum Preset {
     /// The look-around camera on an ego that stands still (waiting at a junction): the
     /// only camera motion is the pan, a pure rotation, and the translation is zero.
     StoppedPan,
+    /// Motion suite (`suite`): movers at constant velocity, the control.
+    MotionConstant,
+    /// Motion suite: movers braking and accelerating.
+    MotionAccelerating,
+    /// Motion suite: movers turning on arcs.
+    MotionTurning,
+    /// Motion suite: movers crossing the road ahead.
+    MotionCrossing,
+    /// Motion suite: stop-and-go traffic.
+    MotionStopAndGo,
 }
 
 impl Preset {
-    pub const ALL: [Preset; 10] = [
+    pub const ALL: [Preset; 15] = [
         Preset::Urban,
         Preset::Static,
         Preset::SharpTurn,
@@ -50,6 +60,19 @@ impl Preset {
         Preset::Winding,
         Preset::LookAround,
         Preset::StoppedPan,
+        Preset::MotionConstant,
+        Preset::MotionAccelerating,
+        Preset::MotionTurning,
+        Preset::MotionCrossing,
+        Preset::MotionStopAndGo,
+    ];
+    /// The motion suite (`suite`): one motion type each, simple ego motion.
+    pub const MOTION_SUITE: [Preset; 5] = [
+        Preset::MotionConstant,
+        Preset::MotionAccelerating,
+        Preset::MotionTurning,
+        Preset::MotionCrossing,
+        Preset::MotionStopAndGo,
     ];
     pub fn name(&self) -> &'static str {
         match self {
@@ -63,6 +86,11 @@ impl Preset {
             Preset::Winding => "winding",
             Preset::LookAround => "look-around",
             Preset::StoppedPan => "stopped-pan",
+            Preset::MotionConstant => "motion-constant",
+            Preset::MotionAccelerating => "motion-accelerating",
+            Preset::MotionTurning => "motion-turning",
+            Preset::MotionCrossing => "motion-crossing",
+            Preset::MotionStopAndGo => "motion-stop-and-go",
         }
     }
     pub fn from_name(name: &str) -> Option<Preset> {
@@ -72,8 +100,8 @@ impl Preset {
 
 /// 10 Hz, like the Waymo front camera.
 pub const FRAME_INTERVAL_S: f64 = 0.1;
-const CAMERA_HEIGHT: f64 = 1.6;
-const CAMERA_PITCH: f64 = 0.03;
+pub(super) const CAMERA_HEIGHT: f64 = 1.6;
+pub(super) const CAMERA_PITCH: f64 = 0.03;
 /// Radius range of the winding preset's bend; with its 5-9 m/s ego that is a yaw rate of
 /// 0.4-2° per 10 Hz frame.
 const WINDING_RADIUS_M: (f64, f64) = (25.0, 70.0);
@@ -82,10 +110,18 @@ const WINDING_RADIUS_M: (f64, f64) = (25.0, 70.0);
 const LOOK_AMPLITUDE_DEG: (f64, f64) = (2.0, 6.0);
 const LOOK_PERIOD_S: (f64, f64) = (1.2, 2.5);
 /// Scenery this far behind and beyond the ego's path.
-const SCENERY_BEHIND: f64 = 40.0;
-const SCENERY_AHEAD: f64 = 160.0;
+pub(super) const SCENERY_BEHIND: f64 = 40.0;
+pub(super) const SCENERY_AHEAD: f64 = 160.0;
 
-fn lane(s0: f64, v0: f64, accel: f64, dir: f64, from: f64, to: f64, change_start: f64) -> Motion {
+pub(super) fn lane(
+    s0: f64,
+    v0: f64,
+    accel: f64,
+    dir: f64,
+    from: f64,
+    to: f64,
+    change_start: f64,
+) -> Motion {
     Motion::Lane {
         s0,
         v0,
@@ -99,7 +135,7 @@ fn lane(s0: f64, v0: f64, accel: f64, dir: f64, from: f64, to: f64, change_start
     }
 }
 
-fn crossing(s: f64, from_right: bool, speed: f64, accel: f64, wobble: f64) -> Motion {
+pub(super) fn crossing(s: f64, from_right: bool, speed: f64, accel: f64, wobble: f64) -> Motion {
     let edge = HALF_WIDTH + KERB_WIDTH + 1.5;
     Motion::Crossing {
         s,
@@ -112,7 +148,7 @@ fn crossing(s: f64, from_right: bool, speed: f64, accel: f64, wobble: f64) -> Mo
     }
 }
 
-fn cloth(rng: &mut Rng) -> [f32; 3] {
+pub(super) fn cloth(rng: &mut Rng) -> [f32; 3] {
     [
         rng.range(0.1, 0.8) as f32,
         rng.range(0.1, 0.6) as f32,
@@ -120,7 +156,7 @@ fn cloth(rng: &mut Rng) -> [f32; 3] {
     ]
 }
 
-fn colour(rng: &mut Rng) -> [f32; 3] {
+pub(super) fn colour(rng: &mut Rng) -> [f32; 3] {
     CAR_COLOURS[rng.below(CAR_COLOURS.len())]
 }
 
@@ -200,6 +236,12 @@ fn agents(preset: Preset, road: &Road, rng: &mut Rng, ego_v: f64) -> Vec<Object>
     };
     match preset {
         Preset::Static => {}
+        // Built by `suite::build_world`, never here.
+        Preset::MotionConstant
+        | Preset::MotionAccelerating
+        | Preset::MotionTurning
+        | Preset::MotionCrossing
+        | Preset::MotionStopAndGo => {}
         Preset::Urban
         | Preset::LowLight
         | Preset::Winding
@@ -283,7 +325,7 @@ fn agents(preset: Preset, road: &Road, rng: &mut Rng, ego_v: f64) -> Vec<Object>
     out
 }
 
-fn lighting(preset: Preset, rng: &mut Rng) -> Lighting {
+pub(super) fn lighting(preset: Preset, rng: &mut Rng) -> Lighting {
     let az = rng.range(0.0, std::f64::consts::TAU);
     if preset == Preset::LowLight {
         let el: f64 = 0.07;
@@ -307,6 +349,9 @@ fn lighting(preset: Preset, rng: &mut Rng) -> Lighting {
 
 /// Builds the world of one clip from its own RNG stream.
 pub fn build_world(preset: Preset, rng: &mut Rng, frames: usize) -> World {
+    if let Some(kind) = preset.suite_motion() {
+        return super::suite::build_world(preset, kind, rng, frames);
+    }
     let left = rng.sign();
     let (turn_at, turn_len, curvature, ego_v, ego_a) = match preset {
         Preset::SharpTurn => (

@@ -65,6 +65,7 @@ pub fn synth_clip(seed: u64) -> HostClip {
         eval_depths: r.frames.iter().map(|f| Some(f.depth.clone())).collect(),
         eval_depth_source: Some(envision4d_data::DepthSource::Dense),
         dynamic_masks: Vec::new(),
+        motion_truth: Vec::new(),
     }
 }
 
