@@ -4,6 +4,7 @@
 //!
 //! - [`protocol`]: [`evaluate_clip`], one clip, every number of the report.
 //! - [`baselines`]: copy-last-frame and constant-velocity pose extrapolation.
+//! - [`motion`]: predicted scene flow and dynamic masks against exact truth (synthetic).
 //! - [`pose_error`]: host SE(3) helpers and the per-frame pose error against ground truth.
 //! - [`report`]: the JSON schema (`docs/EVAL.md`) and means over clips; [`markdown`]: the
 //!   Markdown tables.
@@ -19,6 +20,7 @@ pub mod cross_frame;
 pub mod depth_eval;
 pub mod error;
 pub mod markdown;
+pub mod motion;
 pub mod pose_error;
 pub mod protocol;
 pub mod regions;

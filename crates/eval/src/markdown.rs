@@ -114,6 +114,9 @@ fn mean_tables(s: &mut String, m: &ClipMetrics) {
         }
         let _ = writeln!(s);
     }
+    if let Some(motion) = &m.motion {
+        s.push_str(&motion.markdown());
+    }
     let _ = writeln!(s, "## Per future horizon (mean over clips)\n");
     let _ = writeln!(
         s,
@@ -343,6 +346,9 @@ pub fn summary(report: &Report) -> String {
             "  D-RMSE of the depth head on context frames ({} alignment): {:.3} m",
             d.alignment, d.rmse
         );
+    }
+    if let Some(motion) = &mean.motion {
+        let _ = writeln!(s, "{}", motion.summary_line());
     }
     let _ = writeln!(
         s,

@@ -12,6 +12,7 @@ use crate::baselines::{
 use crate::cross_frame::cross_frame;
 use crate::depth_eval::{depth_score, upsample_nearest, DepthTruth};
 use crate::error::{EvalError, Result};
+use crate::motion::{motion_score, MotionScore, MotionTruth, PredictedMotion};
 use crate::pose_error::{
     extrinsics_tensor, host_extrinsics, pose_error, relative_to_first, to_extrinsic,
     translation_scale,
@@ -99,6 +100,7 @@ pub fn evaluate_clip(
     )?];
     let (mut context, mut depth, mut context_depth, mut context_decoder_s) =
         (None, None, None, None);
+    let mut motion = None;
     if opts.extent == Extent::Full {
         let targets: Vec<usize> = (0..tc).collect();
         let gt_context = clip_images(clip, &targets)?;
@@ -107,6 +109,7 @@ pub fn evaluate_clip(
         context = Some(ctx);
         depth = rendered_depth_score(&rendered, clip, &future, opts)?;
         context_depth = head_depth_score(&scene, clip, tc, opts)?;
+        motion = motion_truth_score(&scene, clip, tc, n, input, &pred_poses);
         methods.extend(baselines(
             &scene,
             clip,
@@ -127,6 +130,7 @@ pub fn evaluate_clip(
         context,
         depth_rmse: depth,
         context_depth_rmse: context_depth,
+        motion,
     })
 }
 
@@ -294,6 +298,53 @@ fn head_depth_score(
     };
     let frames: Vec<usize> = (0..tc).collect();
     depth_score(&pred, &truth, &frames, opts.crop, opts.depth_alignment)
+}
+
+/// The predicted displacements against the clip's exact scene flow (`motion`); `None`
+/// when the clip has no motion truth (nothing is read back then).
+fn motion_truth_score(
+    scene: &Scene,
+    clip: &HostClip,
+    tc: usize,
+    n: usize,
+    input: [usize; 2],
+    pred_poses: &[Mat4],
+) -> Option<MotionScore> {
+    if clip.motion_truth.len() < n {
+        return None;
+    }
+    let a = &scene.adapted;
+    let [_, _, g, _] = a.means.dims();
+    let [_, _, k, _, _] = a.motions.dims();
+    let means: Vec<f32> = a
+        .means
+        .clone()
+        .slice([0..1, 0..tc, 0..g, 0..3])
+        .into_data()
+        .iter::<f32>()
+        .collect();
+    let motions: Vec<f32> = a
+        .motions
+        .clone()
+        .slice([0..1, 0..tc, 0..k, 0..g, 0..3])
+        .into_data()
+        .iter::<f32>()
+        .collect();
+    motion_score(
+        &PredictedMotion {
+            context: tc,
+            frames: n,
+            grid: (input[0], input[1]),
+            means: &means,
+            motions: &motions,
+            extrinsics: pred_poses,
+        },
+        &MotionTruth {
+            size: (clip.height, clip.width),
+            frames: &clip.motion_truth,
+            masks: &clip.dynamic_masks,
+        },
+    )
 }
 
 /// The JSON name of a depth alignment.

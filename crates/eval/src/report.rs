@@ -150,6 +150,8 @@ pub struct ClipMetrics {
     pub depth_rmse: Option<DepthScore>,
     /// The depth head's maps of the context frames.
     pub context_depth_rmse: Option<DepthScore>,
+    /// The predicted motion against exact scene flow and dynamic masks (synthetic data).
+    pub motion: Option<crate::motion::MotionScore>,
 }
 
 impl ClipMetrics {
@@ -272,6 +274,12 @@ pub fn mean_metrics(clips: &[ClipMetrics]) -> Option<ClipMetrics> {
         context: mean_context(&contexts),
         depth_rmse: mean_depth(&depths),
         context_depth_rmse: mean_depth(&head),
+        motion: crate::motion::mean_motion(
+            &clips
+                .iter()
+                .filter_map(|c| c.motion.as_ref())
+                .collect::<Vec<_>>(),
+        ),
     })
 }
 
