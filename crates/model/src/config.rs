@@ -82,6 +82,10 @@ pub enum MotionModel {
     /// pixel, and a Gaussian of frame i reaches timestamp j by `v·(j − i)` (see
     /// [`crate::motion::linear_displacements`]).
     LinearVelocity,
+    /// No motion, trained that way (the control of the motion benchmark): every displacement
+    /// is zero and the motion head never runs. The head is still built with the lifting
+    /// layout, so checkpoints of every variant share one set of keys.
+    Off,
 }
 
 impl MotionModel {
@@ -93,7 +97,7 @@ impl MotionModel {
     /// `[v_fwd | v_bwd]` per context frame.
     pub fn head_channels(self) -> usize {
         match self {
-            MotionModel::Lifting => DISPLACEMENT_DIM,
+            MotionModel::Lifting | MotionModel::Off => DISPLACEMENT_DIM,
             MotionModel::LinearVelocity => VELOCITY_DIRECTIONS * DISPLACEMENT_DIM,
         }
     }

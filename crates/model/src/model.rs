@@ -4,7 +4,7 @@
 use crate::adapter::{adapt, AdaptedGaussians, OpacityMapping, ScaleRange};
 use crate::aggregator::{Aggregator, AggregatorOutput, Temporal};
 use crate::camera_head::CameraHead;
-use crate::config::ModelConfig;
+use crate::config::{ModelConfig, MotionModel, DISPLACEMENT_DIM};
 use crate::dpt::{depth_activation, DptHead, DptKind};
 use crate::future::{FuturePose, FutureTokens};
 use crate::motion::{displacements, motion_tokens};
@@ -130,7 +130,8 @@ impl Envision4d {
 
     /// The full forward pass on context images `[B, T_c, 3, H, W]` in [0, 1].
     pub fn forward(&self, images: Tensor<5>, heads: Heads) -> Predictions {
-        let [_, _, _, h, w] = images.dims();
+        let [b, tc, _, h, w] = images.dims();
+        let device = images.device();
         let taps_idx = self.temporal_layers;
         let backbone = self.backbone(images, &taps_idx);
         let agg = &backbone.aggregator;
@@ -150,11 +151,18 @@ impl Envision4d {
                 self.dpt_frame_chunk,
             )
         });
-        let (motion_enc, motion_tokens) = if heads.motion {
-            let model = self
-                .motion_head
-                .motion_model()
-                .expect("motion_head is built as a motion head");
+        let model = self
+            .motion_head
+            .motion_model()
+            .expect("motion_head is built as a motion head");
+        let (motion_enc, motion_tokens) = if !heads.motion {
+            (None, None)
+        } else if model == MotionModel::Off {
+            // Nothing moves: the head (and its tokens) is skipped altogether.
+            let n = backbone.tokens.time.dims()[1];
+            let shape = [b, tc * (n - 1), h, w, DISPLACEMENT_DIM];
+            (Some(Tensor::zeros(shape, &device)), None)
+        } else {
             let time = backbone.tokens.time.clone();
             let n = time.dims()[1];
             let tokens = motion_tokens(model, &agg.time_list, time, agg.patch_start);
@@ -163,8 +171,6 @@ impl Envision4d {
                 self.motion_head
                     .forward_chunked(&tokens, 0, [h, w], None, self.dpt_frame_chunk);
             (Some(displacements(model, raw, n)), Some(tokens))
-        } else {
-            (None, None)
         };
         Predictions {
             backbone,

@@ -74,7 +74,8 @@ pub fn motion_tokens(
     assert_eq!(time_list.len(), 4, "the motion head reads four maps");
     std::array::from_fn(|t| match model {
         MotionModel::Lifting => lift(time_list[t].clone(), time.clone(), patch_start),
-        MotionModel::LinearVelocity => {
+        // `Off` never runs the head; its tokens would be the plain motion tokens.
+        MotionModel::LinearVelocity | MotionModel::Off => {
             let [b, tc, p, c] = time_list[t].dims();
             time_list[t]
                 .clone()
@@ -90,6 +91,7 @@ pub fn displacements(model: MotionModel, head_out: Tensor<5>, n: usize) -> Tenso
     match model {
         MotionModel::Lifting => head_out,
         MotionModel::LinearVelocity => linear_displacements(head_out, n),
+        MotionModel::Off => head_out.zeros_like(),
     }
 }
 

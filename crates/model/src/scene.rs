@@ -72,8 +72,34 @@ fn all_finite(t: &Tensor<4>) -> bool {
 /// Forward on `context [B, T_c, 3, H, W]` with every head, cameras rebuilt from the
 /// FoV-clamped pose encoding, then lifted to world space.
 pub fn predict_scene(model: &Envision4d, context: Tensor<5>) -> Result<Scene> {
+    predict_scene_with(model, context, Motion::Predicted)
+}
+
+/// Whether a scene's Gaussians move.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Motion {
+    /// The motion head's displacements.
+    Predicted,
+    /// None: the motion head is not run and every displacement is zero (training's static
+    /// warm-up renders nothing that moves, so the head's forward would be thrown away).
+    Still,
+}
+
+/// [`predict_scene`] with the motion head run or skipped; `Motion::Still` equals
+/// `predict_scene(..).without_motion()` without the head's cost.
+pub fn predict_scene_with(model: &Envision4d, context: Tensor<5>, motion: Motion) -> Result<Scene> {
     let [_, _, _, h, w] = context.dims();
-    let mut pred = model.forward(context, Heads::ALL);
+    let heads = Heads {
+        motion: motion == Motion::Predicted,
+        ..Heads::ALL
+    };
+    let mut pred = model.forward(context.clone(), heads);
+    if motion == Motion::Still {
+        let [b, tc, _, _, _] = context.dims();
+        let n = pred.backbone.extrinsics.dims()[1];
+        let shape = [b, tc * (n - 1), h, w, crate::config::DISPLACEMENT_DIM];
+        pred.motion_enc = Some(Tensor::zeros(shape, &context.device()));
+    }
     let pose = pred.backbone.pose_enc();
     if !pose.clone().into_data().iter::<f64>().all(f64::is_finite) {
         return Err(SceneError::NonFinite("pose encoding"));

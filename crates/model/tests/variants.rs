@@ -337,3 +337,57 @@ fn variant_checkpoints_carry_their_switches_and_refuse_the_other_head() {
         .to_string();
     assert!(err.contains("motion_head"), "{err}");
 }
+
+/// Guards the trained "motion off" control: every displacement is exactly zero with the
+/// lifting layout `[B, T_c·(N−1), H, W, 3]`, the head is skipped (no motion tokens), the
+/// checkpoint keeps the lifting head's keys (a paper checkpoint loads into it), and the
+/// serialised name is `off`.
+#[test]
+fn motion_off_predicts_no_motion_and_skips_the_head() {
+    let device = Device::flex();
+    let cfg = small_config(MotionModel::Off, TemporalPlacement::InLayer);
+    let model = Envision4d::new(&cfg, &device);
+    let out = model.forward(images(&cfg, &device), MOTION_ONLY);
+    assert!(out.motion_tokens.is_none(), "the head ran");
+    let motion = out.motion_enc.expect("displacements");
+    let n = cfg.context_frames + cfg.future_frames;
+    let [h, w] = cfg.image_size;
+    assert_eq!(
+        motion.dims(),
+        [1, cfg.context_frames * (n - 1), h, w, DISPLACEMENT_DIM]
+    );
+    assert!(host(motion).iter().all(|&v| v == 0.0));
+    assert_eq!(
+        serde_json::to_value(MotionModel::Off).unwrap(),
+        serde_json::json!("off")
+    );
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("paper.safetensors");
+    let paper_cfg = small_config(MotionModel::Lifting, TemporalPlacement::InLayer);
+    save_checkpoint(&Envision4d::new(&paper_cfg, &device), &paper_cfg, &path).unwrap();
+    let mut off = Envision4d::new(&cfg, &device);
+    load_checkpoint(&mut off, &path, CheckpointKind::Full).expect("same keys and shapes");
+}
+
+/// Guards training's warm-up skip: a scene predicted without running the motion head
+/// (`Motion::Still`) is the full scene with its motion zeroed, Gaussian for Gaussian, so the
+/// warm-up's renders and loss do not change.
+#[test]
+fn still_scene_equals_the_full_scene_without_motion() {
+    use envision4d_model::scene::{predict_scene, predict_scene_with, Motion};
+    let device = Device::flex();
+    let cfg = small_config(MotionModel::Lifting, TemporalPlacement::InLayer);
+    let model = Envision4d::new(&cfg, &device);
+    let imgs = images(&cfg, &device);
+    let full = predict_scene(&model, imgs.clone())
+        .unwrap()
+        .without_motion();
+    let still = predict_scene_with(&model, imgs, Motion::Still).unwrap();
+    assert!(still.pred.motion_tokens.is_none(), "the motion head ran");
+    let (a, b) = (&full.adapted, &still.adapted);
+    assert_eq!(a.motions.dims(), b.motions.dims());
+    assert_eq!(host(a.motions.clone()), host(b.motions.clone()));
+    assert_eq!(host(a.means.clone()), host(b.means.clone()));
+    assert_eq!(host(a.colors.clone()), host(b.colors.clone()));
+    assert_eq!(host(a.opacities.clone()), host(b.opacities.clone()));
+}

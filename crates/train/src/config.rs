@@ -158,6 +158,8 @@ pub enum MotionModel {
     Lifting,
     /// Linear bidirectional velocity instead of CML.
     LinearVelocity,
+    /// No motion at all (the motion benchmark's control; the motion head never runs).
+    Off,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]

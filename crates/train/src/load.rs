@@ -79,6 +79,7 @@ fn ablation_switches(a: &AblationConfig) -> (ModelMotion, ModelPlacement) {
     let motion = match a.motion {
         MotionModel::Lifting => ModelMotion::Lifting,
         MotionModel::LinearVelocity => ModelMotion::LinearVelocity,
+        MotionModel::Off => ModelMotion::Off,
     };
     let placement = match a.temporal_attention {
         TemporalAttention::InLayer => ModelPlacement::InLayer,

@@ -17,7 +17,7 @@ use burn::grad_clipping::GradientClippingConfig;
 use burn::optim::{AdamConfig, GradientsParams, ModuleOptimizer};
 use burn::tensor::{Device, Tensor};
 use envision4d_losses::{psnr_from_mse, LpipsNet, LpipsStatus, RgbLoss};
-use envision4d_model::scene::predict_scene;
+use envision4d_model::scene::{predict_scene_with, Motion};
 use envision4d_model::Envision4d;
 use envision4d_splat::RasterConfig;
 
@@ -220,13 +220,14 @@ impl Trainer {
             .images
             .clone()
             .slice([0..bsz, 0..tc, 0..3, 0..h, 0..w]);
-        let scene = predict_scene(model, context)?;
         let plan = self.schedule.plan(step, tc, n);
-        let scene = if plan.motion {
-            scene
+        // A plan without motion (the static warm-up) never runs the motion head.
+        let motion = if plan.motion {
+            Motion::Predicted
         } else {
-            scene.without_motion()
+            Motion::Still
         };
+        let scene = predict_scene_with(model, context, motion)?;
         let (rgb, mse) = self.rendering_loss(&scene, batch, &plan)?;
         let mut total = rgb.clone();
         let (mut camera, mut depth) = (None, None);
