@@ -4,6 +4,7 @@
 use crate::InputError;
 use anyhow::{Context, Result};
 use clap::Args;
+use envision4d_data::synth::footprint::{footprint, Footprint, PATCH_PX};
 use envision4d_data::synth::{
     render_clip, write_clip, write_nuscenes_scenes, write_storm_scene, Preset, SynthConfig,
     DEFAULT_SUPERSAMPLE,
@@ -52,7 +53,8 @@ pub struct SynthArgs {
     #[arg(long, default_value = "350x518", value_parser = parse_size)]
     size: (usize, usize),
     /// urban, static, sharp-turn, fast-approach, far-small-movers, crossing-truck, low-light,
-    /// winding, look-around, stopped-pan.
+    /// winding, look-around, stopped-pan; the motion suite: motion-constant,
+    /// motion-accelerating, motion-turning, motion-crossing, motion-stop-and-go.
     #[arg(long, default_value = "urban", value_parser = parse_preset)]
     preset: Preset,
     /// World seed: the same seed gives byte-identical files.
@@ -169,6 +171,7 @@ pub fn run(args: SynthArgs) -> Result<()> {
         }
         _ => {}
     }
+    let mut sizes = Vec::with_capacity(args.clips);
     for i in 0..args.clips {
         // Our layout keeps clip i's world at stream i; a real layout's scene draws from a
         // stream of its split and scene number, so two splits written with one --seed never
@@ -178,6 +181,7 @@ pub fn run(args: SynthArgs) -> Result<()> {
             _ => scene_stream(&split, args.first_scene + i),
         };
         let clip = render_clip(&cfg, stream, || bar.inc(1))?;
+        sizes.push(footprint(&clip));
         let dir = match args.layout {
             SynthLayout::Synth => args.out.join(format!("clip_{i:06}")),
             SynthLayout::StormWaymo => args
@@ -209,7 +213,30 @@ pub fn run(args: SynthArgs) -> Result<()> {
         args.out.display(),
         secs / (args.clips * args.frames) as f64
     );
+    report_footprint(&sizes);
     Ok(())
+}
+
+/// Prints how large the moving objects are on screen, the measurement that sets a motion
+/// experiment's resolution (`synth::footprint`).
+fn report_footprint(sizes: &[Footprint]) {
+    let n: usize = sizes.iter().map(|f| f.sightings).sum();
+    if n == 0 {
+        eprintln!("no moving object is visible in these clips");
+        return;
+    }
+    let mean = |f: fn(&Footprint) -> f64| {
+        sizes.iter().map(|s| f(s) * s.sightings as f64).sum::<f64>() / n as f64
+    };
+    let px = mean(|f| f.mean_px);
+    eprintln!(
+        "moving objects: {n} sightings, mean {px:.0} px = {:.2} patches of {PATCH_PX}x{PATCH_PX} \
+         (median per clip {:.0} px), box {:.1}x{:.1} px",
+        px / (PATCH_PX * PATCH_PX) as f64,
+        mean(|f| f.median_px),
+        mean(|f| f.mean_box.0),
+        mean(|f| f.mean_box.1),
+    );
 }
 
 #[cfg(test)]

@@ -28,6 +28,13 @@ pub struct TrainArgs {
     /// settings and the trainable/frozen parameter counts, and stop.
     #[arg(long)]
     dry_run: bool,
+    /// Overrides the config's `seed` (model init and data order): repeated runs of one
+    /// config with several seeds, as the motion benchmark trains them.
+    #[arg(long)]
+    seed: Option<u64>,
+    /// Overrides `[run] out_dir`.
+    #[arg(long)]
+    out_dir: Option<PathBuf>,
     #[arg(long, value_enum, default_value_t = BackendChoice::Cpu)]
     backend: BackendChoice,
     /// Data-parallel devices, comma-separated: `wgpu:0,wgpu:1` (discrete GPUs by index),
@@ -56,7 +63,13 @@ fn parse_device(spec: &str) -> Result<burn::tensor::Device> {
 }
 
 pub fn run(args: TrainArgs) -> Result<()> {
-    let cfg = envision4d_train::load(&args.config)?;
+    let mut cfg = envision4d_train::load(&args.config)?;
+    if let Some(seed) = args.seed {
+        cfg.seed = seed;
+    }
+    if let Some(dir) = &args.out_dir {
+        cfg.run.out_dir = dir.clone();
+    }
     let devices = args
         .devices
         .iter()

@@ -5,7 +5,7 @@
 //!
 //! The road is straight; the ego either stands (waiting) or drives its lane at a constant
 //! speed, half of the clips each, so the camera motion is zero or a constant translation.
-//! Movers are placed 8-30 m ahead in the lanes beside the ego's and across the road, where
+//! Movers are placed 6-20 m ahead in the lanes beside the ego's and across the road, where
 //! they cover the most pixels; the ego's own lane gets a mover only when the ego stands.
 
 use super::motion::{EgoMotion, LookAround, Motion};
@@ -40,7 +40,7 @@ const EGO_SPEED: (f64, f64) = (4.0, 9.0);
 /// Fraction of clips where the ego stands.
 const EGO_STANDS: f64 = 0.5;
 /// Where movers start, metres ahead of the ego (before the ego's own travel is added).
-const NEAR: (f64, f64) = (8.0, 30.0);
+const NEAR: (f64, f64) = (6.0, 20.0);
 /// Turning radius range of the arcs (m) and their speed (m/s).
 const ARC_RADIUS: (f64, f64) = (4.0, 7.0);
 const ARC_SPEED: (f64, f64) = (3.0, 7.0);

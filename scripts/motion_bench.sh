@@ -1,0 +1,116 @@
+#!/usr/bin/env bash
+# The motion benchmark (docs/RESULTS.md, "Motion"): from nothing to the Motion table.
+#
+#   scripts/motion_bench.sh                      # the whole benchmark (hours on 2 CPU cores)
+#   SEEDS="0" VARIANTS="cml linear-velocity" scripts/motion_bench.sh   # a part of it
+#   SMOKE=1 scripts/motion_bench.sh              # every stage for a few steps (CI, minutes)
+#
+# 1. data: the motion suite (one preset per motion type, docs/DATA.md) at the benchmark's
+#    resolution; training clips (seeds 100-104) and held-out clips (seeds 2100-2104), never
+#    the same worlds;
+# 2. stage 1: one backbone on the training clips (configs/motion/backbone.toml);
+# 3. stage 2: every variant (configs/motion/<variant>.toml) from that backbone, once per seed;
+# 4. evaluation of every run on each motion type's held-out clips: future frames, the
+#    dynamic/static regions, scene-flow EPE and dynamic-mask IoU against exact truth
+#    (docs/EVAL.md);
+# 5. the table (scripts/motion_table.py): per motion type, each variant's means and its
+#    paired difference to CML per held-out clip with 95% intervals.
+#
+# Finished runs and evaluations are kept: rerunning the script continues where it stopped
+# (an interrupted training resumes from its last checkpoint).
+set -euo pipefail
+BIN=${ENVISION4D:-${CARGO_TARGET_DIR:-target}/release/envision4d}
+ROOT=${MOTION_ROOT:-.}
+SIZE=${SIZE:-112x168}
+SEEDS=${SEEDS:-"0 1 2"}
+VARIANTS=${VARIANTS:-"cml linear-velocity no-temporal post-layer motion-off"}
+PRESETS=${PRESETS:-"motion-constant motion-accelerating motion-turning motion-crossing motion-stop-and-go"}
+TRAIN_CLIPS=${TRAIN_CLIPS:-16}
+HELDOUT_CLIPS=${HELDOUT_CLIPS:-8}
+FRAMES=${FRAMES:-16}
+CONFIGS=$(cd "$(dirname "$0")/../configs/motion" && pwd)
+if [ -n "${SMOKE:-}" ]; then
+  # Every stage, a few steps each, tiny data: checks the pipeline, not the result.
+  SIZE=56x84 SEEDS="0" TRAIN_CLIPS=1 HELDOUT_CLIPS=1 FRAMES=8
+  STOP=(--stop-at 2)
+else
+  STOP=()
+fi
+DATA="$ROOT/data"
+RUNS="$ROOT/runs/motion"
+mkdir -p "$DATA" "$RUNS"
+
+# A config of configs/motion with the paths of this run (and the smoke's size).
+config() {
+  local name=$1 out=$2
+  local h=${SIZE%x*} w=${SIZE#*x}
+  sed -e "s#^root = .*#root = \"$DATA/motion-train\"#" \
+      -e "s#^init_checkpoint = .*#init_checkpoint = \"$RUNS/backbone/model.safetensors\"#" \
+      -e "s#^image_size = .*#image_size = [$h, $w]#" \
+      -e "s#^out_dir = .*#out_dir = \"$RUNS/$name\"#" \
+      "$CONFIGS/$name.toml" > "$out"
+}
+
+# Trains one config into runs/motion/<run> unless it finished; resumes a started run.
+train() {
+  local cfg=$1 run=$2 seed=$3
+  local dir="$RUNS/$run"
+  if [ -f "$dir/model.safetensors" ] && [ -z "${SMOKE:-}" ]; then
+    return
+  fi
+  local resume=()
+  if [ -d "$dir/checkpoints" ] && [ -z "${SMOKE:-}" ]; then
+    resume=(--resume "$dir")
+  fi
+  "$BIN" train --config "$cfg" --seed "$seed" --out-dir "$dir" "${STOP[@]}" "${resume[@]}"
+}
+
+echo "== data ($SIZE, $FRAMES frames)"
+i=0
+for p in $PRESETS; do
+  if [ ! -d "$DATA/motion-train-$p" ]; then
+    "$BIN" synth --out "$DATA/motion-train-$p" --clips "$TRAIN_CLIPS" --frames "$FRAMES" \
+      --size "$SIZE" --preset "$p" --seed $((100 + i))
+  fi
+  if [ ! -d "$DATA/motion-heldout/$p" ]; then
+    "$BIN" synth --out "$DATA/motion-heldout/$p" --clips "$HELDOUT_CLIPS" --frames 8 \
+      --size "$SIZE" --preset "$p" --seed $((2100 + i))
+  fi
+  i=$((i + 1))
+done
+# One training folder of every motion type (clip folders renamed by preset).
+if [ ! -d "$DATA/motion-train" ]; then
+  mkdir -p "$DATA/motion-train.tmp"
+  for p in $PRESETS; do
+    for d in "$DATA/motion-train-$p"/clip_*; do
+      ln -s "$(cd "$d" && pwd)" "$DATA/motion-train.tmp/${p}_$(basename "$d")"
+    done
+  done
+  mv "$DATA/motion-train.tmp" "$DATA/motion-train"
+fi
+
+echo "== stage 1: backbone"
+config backbone "$RUNS/backbone.toml"
+train "$RUNS/backbone.toml" backbone 0
+
+for v in $VARIANTS; do
+  config "$v" "$RUNS/$v.toml"
+  for s in $SEEDS; do
+    echo "== stage 2: $v, seed $s"
+    train "$RUNS/$v.toml" "$v-s$s" "$s"
+    for p in $PRESETS; do
+      out="$RUNS/$v-s$s/eval-$p"
+      if [ ! -f "$out/metrics.json" ] || [ -n "${SMOKE:-}" ]; then
+        "$BIN" eval --checkpoint "$RUNS/$v-s$s/model.safetensors" --data "$DATA/motion-heldout/$p" \
+          --out "$out" > "$RUNS/$v-s$s/eval-$p.txt"
+      fi
+    done
+  done
+done
+
+echo "== table"
+# With CML trained, its displacements zeroed at test time are a row too ("cml-zeroed").
+TABLE_ROWS=$VARIANTS
+case " $VARIANTS " in *" cml "*) TABLE_ROWS="$VARIANTS cml-zeroed" ;; esac
+python3 "$(dirname "$0")/motion_table.py" "$RUNS" "$TABLE_ROWS" "$SEEDS" "$PRESETS" \
+  | tee "$RUNS/motion-table.md"
