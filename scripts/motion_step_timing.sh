@@ -3,9 +3,9 @@
 # (configs/motion/*.toml), in the progressive phase (self-exclusive renders of all 2 x 8
 # frames with motion), from random weights with no labels, so no backbone is needed.
 #
-#   scripts/motion_step_timing.sh [BIN] [OUT] [VARIANTS] [SIZE] [STEPS]
+#   scripts/motion_step_timing.sh [BIN] [OUT] [VARIANTS] [SIZE] [STEPS] [PHASE]
 #   (defaults: target/release/envision4d, runs/motion-timing, "cml linear-velocity
-#    motion-off", 112x168, 14)
+#    motion-off", 112x168, 14, progressive; PHASE=warmup times the static warm-up instead)
 #
 # Makes 16 clips of 16 frames of two suite presets at SIZE, trains each variant for STEPS
 # steps (geometric warm-up 2 steps), and prints the median `seconds` of the steps after the
@@ -16,6 +16,9 @@ OUT=${2:-runs/motion-timing}
 VARIANTS=${3:-"cml linear-velocity motion-off"}
 SIZE=${4:-112x168}
 STEPS=${5:-14}
+PHASE=${6:-progressive}
+WARMUP=2
+if [ "$PHASE" = warmup ]; then WARMUP=$STEPS; fi
 ROOT=$(cd "$(dirname "$0")/.." && pwd)
 mkdir -p "$OUT"
 OUT=$(cd "$OUT" && pwd)
@@ -37,7 +40,7 @@ for v in $VARIANTS; do
   sed -e '/^init_checkpoint = /d' \
       -e 's/^teacher = .*/teacher = "none"/' \
       -e "s/^iterations = .*/iterations = $STEPS/" \
-      -e 's/^warmup_iterations = .*/warmup_iterations = 2/' \
+      -e "s/^warmup_iterations = .*/warmup_iterations = $WARMUP/" \
       -e "s/^s_max = .*/s_max = $STEPS/" \
       -e "s/^image_size = .*/image_size = [${SIZE%x*}, ${SIZE#*x}]/" \
       -e "s#^root = .*#root = \"$DATA\"#" \
@@ -46,11 +49,11 @@ for v in $VARIANTS; do
       -e "s/^checkpoint_every = .*/checkpoint_every = $STEPS/" \
       "$ROOT/configs/motion/$v.toml" > "$OUT/$v-$SIZE.toml"
   "$BIN" train --config "$OUT/$v-$SIZE.toml" >/dev/null 2>&1
-  python3 - "$run/log.jsonl" "$v" "$SIZE" <<'PY'
+  python3 - "$run/log.jsonl" "$v" "$SIZE" "$PHASE" <<'PY'
 import json, statistics, sys
 steps = [r for r in map(json.loads, open(sys.argv[1])) if r["kind"] == "step"]
-late = [r["seconds"] for r in steps if r["step"] > 3]
-print(f"{sys.argv[2]:<16} {sys.argv[3]}: {len(late)} progressive steps, median "
+late = [r["seconds"] for r in steps if r["step"] > 3 and r["phase"] == sys.argv[4]]
+print(f"{sys.argv[2]:<16} {sys.argv[3]}: {len(late)} {sys.argv[4]} steps, median "
       f"{statistics.median(late):.3f} s/step, fastest {min(late):.3f} s")
 PY
 done
