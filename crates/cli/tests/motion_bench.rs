@@ -56,7 +56,12 @@ fn motion_bench_smoke_runs_every_stage() {
     ] {
         assert!(table.contains(&format!("### {p}")), "{table}");
     }
-    for v in ["| cml |", "| linear-velocity |", "| motion-off |", "| cml-zeroed |"] {
+    for v in [
+        "| cml |",
+        "| linear-velocity |",
+        "| motion-off |",
+        "| cml-zeroed |",
+    ] {
         assert!(table.contains(v), "{table}");
     }
 }

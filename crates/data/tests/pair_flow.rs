@@ -3,25 +3,18 @@
 //! object's pixels onto that object in the later frame.
 
 use envision4d_data::synth::{render_clip, write_clip, Preset, SynthConfig};
-use envision4d_data::{ClipDataset, ClipSpec, DatasetConfig, Fit, FitMode, HostClip, Layout, Vec3};
+use envision4d_data::{
+    Clip, ClipDataset, ClipSpec, DatasetConfig, Fit, FitMode, HostClip, Layout, Vec3,
+};
 use std::path::Path;
+use std::sync::Arc;
 
 const H: usize = 48;
 const W: usize = 64;
 const FRAMES: usize = 5;
 
-fn host_clip(dir: &Path, preset: Preset, seed: u64, fit: (usize, usize)) -> HostClip {
-    let cfg = SynthConfig {
-        width: W,
-        height: H,
-        frames: FRAMES,
-        preset,
-        seed,
-        supersample: 1,
-    };
-    let clip = render_clip(&cfg, 0, || {}).unwrap();
-    write_clip(&dir.join("clip_000000"), &clip).unwrap();
-    let cfg = DatasetConfig {
+fn dataset_config(fit: (usize, usize)) -> DatasetConfig {
+    DatasetConfig {
         layout: Layout::Synth { stride: 1 },
         spec: ClipSpec {
             context: 1,
@@ -33,9 +26,33 @@ fn host_clip(dir: &Path, preset: Preset, seed: u64, fit: (usize, usize)) -> Host
             width: fit.1,
         },
         cache_clips: 0,
+    }
+}
+
+/// Writes one clip of `preset` and reads it back at `fit` size: the decoded clip (its raw
+/// ground truth) and the host clip (the truth on the frame grid).
+fn written_clip(
+    dir: &Path,
+    preset: Preset,
+    seed: u64,
+    fit: (usize, usize),
+) -> (Arc<Clip>, HostClip) {
+    let cfg = SynthConfig {
+        width: W,
+        height: H,
+        frames: FRAMES,
+        preset,
+        seed,
+        supersample: 1,
     };
-    let clip = ClipDataset::open(dir, cfg).unwrap().load(0).unwrap();
-    HostClip::from_clip(&clip).unwrap()
+    let clip = render_clip(&cfg, 0, || {}).unwrap();
+    write_clip(&dir.join("clip_000000"), &clip).unwrap();
+    let clip = ClipDataset::open(dir, dataset_config(fit))
+        .unwrap()
+        .load(0)
+        .unwrap();
+    let host = HostClip::from_clip(&clip).unwrap();
+    (clip, host)
 }
 
 /// Guards the pair flow against the stored flow: from frame t to t+1 it equals the tracer's
@@ -44,21 +61,7 @@ fn host_clip(dir: &Path, preset: Preset, seed: u64, fit: (usize, usize)) -> Host
 #[test]
 fn next_frame_pair_flow_equals_the_stored_flow() {
     let dir = tempfile::tempdir().unwrap();
-    let clip = host_clip(dir.path(), Preset::Urban, 5, (H, W));
-    let cfg = DatasetConfig {
-        layout: Layout::Synth { stride: 1 },
-        spec: ClipSpec {
-            context: 1,
-            future: FRAMES - 1,
-        },
-        fit: Fit {
-            mode: FitMode::Resize,
-            height: H,
-            width: W,
-        },
-        cache_clips: 0,
-    };
-    let raw = ClipDataset::open(dir.path(), cfg).unwrap().load(0).unwrap();
+    let (raw, clip) = written_clip(dir.path(), Preset::Urban, 5, (H, W));
     assert_eq!(clip.motion_truth.len(), FRAMES);
     let mut moving = 0;
     for t in 0..FRAMES - 1 {
@@ -101,7 +104,7 @@ fn next_frame_pair_flow_equals_the_stored_flow() {
 #[test]
 fn far_pair_flow_lands_on_the_same_object() {
     let dir = tempfile::tempdir().unwrap();
-    let clip = host_clip(dir.path(), Preset::Urban, 11, (H, W));
+    let (_, clip) = written_clip(dir.path(), Preset::Urban, 11, (H, W));
     let (a, b) = (
         clip.motion_truth[0].as_ref().unwrap(),
         clip.motion_truth[FRAMES - 1].as_ref().unwrap(),
@@ -141,7 +144,7 @@ fn far_pair_flow_lands_on_the_same_object() {
 #[test]
 fn truth_follows_the_frame_grid() {
     let dir = tempfile::tempdir().unwrap();
-    let clip = host_clip(dir.path(), Preset::Urban, 5, (H / 2, W / 2));
+    let (_, clip) = written_clip(dir.path(), Preset::Urban, 5, (H / 2, W / 2));
     let t = clip.motion_truth[0].as_ref().unwrap();
     assert_eq!(t.points.len(), (H / 2) * (W / 2));
     assert_eq!(t.instance.len(), (H / 2) * (W / 2));
