@@ -3,6 +3,7 @@
 //! `metrics.json`, `metrics.md` and PNG plots. See `docs/EVAL.md`.
 
 pub mod args;
+pub mod motion_images;
 pub mod shared;
 
 use crate::backend_choice::BackendChoice;
@@ -94,6 +95,11 @@ pub struct EvalArgs {
     /// context=<t,..> scored=<t,..>`, frame numbers as the source numbers them), and exit.
     #[arg(long)]
     list_windows: bool,
+    /// On synthetic clips: for the first N scored clips, write motion/<clip>_<i>to<j>.png
+    /// (true displacement | predicted | end-point error, metres, one colour scale; pair: the
+    /// newest context frame to the last future frame) and its .json sidecar.
+    #[arg(long, default_value_t = 0)]
+    motion_images: usize,
 }
 
 /// The horizon to score: `--future`, or the protocol's, checked against the checkpoint.
@@ -272,6 +278,7 @@ pub fn run(args: EvalArgs) -> Result<()> {
     opts.crop = args.crop.unwrap_or_default();
     opts.cross_frame_crop = args.cross_frame_crop;
     opts.depth_alignment = args.depth_align.alignment();
+    opts.motion_maps = args.motion_images > 0;
     atomic::create_dir(&args.out).map_err(|e| InputError(e.to_string()))?;
 
     warm_up(&model, &dataset, &indices, &opts, args.backend)?;
@@ -281,6 +288,13 @@ pub fn run(args: EvalArgs) -> Result<()> {
         progress.inc(1);
     })?;
     progress.finish_and_clear();
+    let images = motion_images::write_motion_images(&args.out, &run.clips, args.motion_images)?;
+    if args.motion_images > 0 {
+        eprintln!(
+            "motion images: {images} written to {} (clips with motion truth only)",
+            args.out.join(motion_images::MOTION_IMAGES_DIR).display()
+        );
+    }
     let sweep = if args.sweep {
         Some(run_sweep(&args, &setup, &model, &dataset, &indices, &opts)?)
     } else {

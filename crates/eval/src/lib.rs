@@ -21,6 +21,7 @@ pub mod depth_eval;
 pub mod error;
 pub mod markdown;
 pub mod motion;
+pub mod motion_maps;
 pub mod pose_error;
 pub mod protocol;
 pub mod regions;
@@ -73,6 +74,9 @@ pub struct EvalOptions {
     /// size (intrinsics scaled), so every setting is scored against the same pixels.
     pub input_size: Option<[usize; 2]>,
     pub extent: Extent,
+    /// Keep each clip's per-pixel motion maps (`motion_maps`) in
+    /// [`ClipMetrics::motion_maps`], where the clip has motion truth.
+    pub motion_maps: bool,
 }
 
 impl EvalOptions {
@@ -101,6 +105,7 @@ impl EvalOptions {
             depth_alignment: DepthAlignment::Median,
             input_size: None,
             extent: Extent::Full,
+            motion_maps: false,
         }
     }
 }

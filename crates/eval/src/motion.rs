@@ -14,7 +14,7 @@ use envision4d_data::geom::Mat4;
 use envision4d_data::synth::MOVING_EPS_M;
 use envision4d_data::{FrameMotionTruth, Vec3};
 use envision4d_model::motion::target_slot;
-use glam::DVec3;
+use glam::{DMat3, DVec3};
 use serde::{Deserialize, Serialize};
 
 /// A pixel whose predicted displacement to the next frame exceeds this (metres, after the
@@ -129,36 +129,76 @@ fn flow_scale(pred: &PredictedMotion, truth: &[&FrameMotionTruth], map: &[usize]
     Some(ratios[ratios.len() / 2])
 }
 
+/// Prediction and truth of one clip made comparable: metres (the clip's scale), each side
+/// in its own frame-0 camera axes, on the prediction grid.
+pub(crate) struct Aligned<'a> {
+    pred: &'a PredictedMotion<'a>,
+    frames: Vec<&'a FrameMotionTruth>,
+    /// Frame-grid pixel of each prediction pixel.
+    map: Vec<usize>,
+    pub scale: f64,
+    /// Predicted world → frame-0 camera axes, times the scale; true world → frame-0 axes.
+    rp: DMat3,
+    rt: DMat3,
+}
+
+impl<'a> Aligned<'a> {
+    /// `None` when a frame lacks truth or no scale can be fitted.
+    pub fn new(pred: &'a PredictedMotion<'a>, truth: &MotionTruth<'a>) -> Option<Self> {
+        let n = pred.frames;
+        let frames: Vec<&FrameMotionTruth> = truth
+            .frames
+            .iter()
+            .take(n)
+            .map(Option::as_ref)
+            .collect::<Option<_>>()?;
+        if frames.len() < n || pred.extrinsics.len() < n {
+            return None;
+        }
+        let map = grid_map(pred.grid, truth.size);
+        let scale = flow_scale(pred, &frames, &map)?;
+        Some(Aligned {
+            rp: pred.extrinsics[0].rotation() * scale,
+            rt: frames[0].world_to_camera.rotation(),
+            pred,
+            frames,
+            map,
+            scale,
+        })
+    }
+
+    pub fn pixels(&self) -> usize {
+        self.map.len()
+    }
+
+    /// Predicted displacement of prediction pixel `k` of source `i` to timestamp `j`.
+    pub fn predicted(&self, i: usize, j: usize, k: usize) -> DVec3 {
+        let slot = (i * (self.pred.frames - 1) + target_slot(i, j)) * self.map.len() + k;
+        self.rp * read3(self.pred.motions, slot)
+    }
+
+    /// True displacement of every prediction pixel of source `i` to timestamp `j`; `None`
+    /// where there is no truth.
+    pub fn truth(&self, i: usize, j: usize) -> Vec<Option<DVec3>> {
+        let flow = self.frames[i].flow_to(&self.frames[j].objects);
+        self.map
+            .iter()
+            .map(|&c| flow[c].map(|d| self.rt * dvec(d)))
+            .collect()
+    }
+}
+
 /// Scores `pred` against `truth`; `None` when a frame lacks truth or no scale can be fitted.
 pub fn motion_score(pred: &PredictedMotion, truth: &MotionTruth) -> Option<MotionScore> {
     let (tc, n) = (pred.context, pred.frames);
-    let frames: Vec<&FrameMotionTruth> = truth
-        .frames
-        .iter()
-        .take(n)
-        .map(Option::as_ref)
-        .collect::<Option<_>>()?;
-    if frames.len() < n || pred.extrinsics.len() < n {
-        return None;
-    }
-    let map = grid_map(pred.grid, truth.size);
-    let g = map.len();
-    let scale = flow_scale(pred, &frames, &map)?;
-    // Each side in its own frame-0 camera axes.
-    let rp = pred.extrinsics[0].rotation() * scale;
-    let rt = frames[0].world_to_camera.rotation();
-    let predicted = |i: usize, j: usize, k: usize| {
-        let slot = (i * (n - 1) + target_slot(i, j)) * g + k;
-        rp * read3(pred.motions, slot)
-    };
+    let a = Aligned::new(pred, truth)?;
     let mut pairs = Vec::with_capacity(tc * (n - 1));
     for i in 0..tc {
         for j in (0..n).filter(|&j| j != i) {
-            let flow = frames[i].flow_to(&frames[j].objects);
             let mut sums = PairSums::default();
-            for (k, &c) in map.iter().enumerate() {
-                if let Some(d) = flow[c] {
-                    sums.add(predicted(i, j, k), rt * dvec(d));
+            for (k, d) in a.truth(i, j).into_iter().enumerate() {
+                if let Some(d) = d {
+                    sums.add(a.predicted(i, j, k), d);
                 }
             }
             pairs.push(sums.score(i, j));
@@ -167,14 +207,15 @@ pub fn motion_score(pred: &PredictedMotion, truth: &MotionTruth) -> Option<Motio
     let per_frame_iou: Vec<Option<f64>> = (0..tc)
         .map(|i| {
             let mask = truth.masks.get(i)?.as_ref()?;
-            let moving = (0..g).map(|k| predicted(i, i + 1, k).length() > MASK_THRESHOLD_M);
-            iou(moving, map.iter().map(|&c| mask[c]))
+            let moving =
+                (0..a.pixels()).map(|k| a.predicted(i, i + 1, k).length() > MASK_THRESHOLD_M);
+            iou(moving, a.map.iter().map(|&c| mask[c]))
         })
         .collect();
     let future: Vec<&FlowPairScore> = pairs.iter().filter(|p| p.target >= tc).collect();
     let over = |f: fn(&FlowPairScore) -> Option<f64>| mean_opt(future.iter().map(|p| f(p)));
     Some(MotionScore {
-        flow_scale: scale,
+        flow_scale: a.scale,
         epe_dynamic: over(|p| p.epe_dynamic),
         epe_static: over(|p| p.epe_static),
         true_displacement: over(|p| p.true_displacement),

@@ -13,6 +13,7 @@ use crate::cross_frame::cross_frame;
 use crate::depth_eval::{depth_score, upsample_nearest, DepthTruth};
 use crate::error::{EvalError, Result};
 use crate::motion::{motion_score, MotionScore, MotionTruth, PredictedMotion};
+use crate::motion_maps::{pair_maps, PairMaps};
 use crate::pose_error::{
     extrinsics_tensor, host_extrinsics, pose_error, relative_to_first, to_extrinsic,
     translation_scale,
@@ -100,7 +101,7 @@ pub fn evaluate_clip(
     )?];
     let (mut context, mut depth, mut context_depth, mut context_decoder_s) =
         (None, None, None, None);
-    let mut motion = None;
+    let (mut motion, mut motion_maps) = (None, None);
     if opts.extent == Extent::Full {
         let targets: Vec<usize> = (0..tc).collect();
         let gt_context = clip_images(clip, &targets)?;
@@ -109,7 +110,7 @@ pub fn evaluate_clip(
         context = Some(ctx);
         depth = rendered_depth_score(&rendered, clip, &future, opts)?;
         context_depth = head_depth_score(&scene, clip, tc, opts)?;
-        motion = motion_truth_score(&scene, clip, tc, n, input, &pred_poses);
+        (motion, motion_maps) = motion_truth_score(&scene, clip, tc, n, input, &pred_poses, opts);
         methods.extend(baselines(
             &scene,
             clip,
@@ -131,6 +132,7 @@ pub fn evaluate_clip(
         depth_rmse: depth,
         context_depth_rmse: context_depth,
         motion,
+        motion_maps,
     })
 }
 
@@ -300,8 +302,9 @@ fn head_depth_score(
     depth_score(&pred, &truth, &frames, opts.crop, opts.depth_alignment)
 }
 
-/// The predicted displacements against the clip's exact scene flow (`motion`); `None`
-/// when the clip has no motion truth (nothing is read back then).
+/// The predicted displacements against the clip's exact scene flow (`motion`), and the
+/// per-pixel maps when asked for; `None` when the clip has no motion truth (nothing is read
+/// back then).
 fn motion_truth_score(
     scene: &Scene,
     clip: &HostClip,
@@ -309,9 +312,10 @@ fn motion_truth_score(
     n: usize,
     input: [usize; 2],
     pred_poses: &[Mat4],
-) -> Option<MotionScore> {
+    opts: &EvalOptions,
+) -> (Option<MotionScore>, Option<PairMaps>) {
     if clip.motion_truth.len() < n {
-        return None;
+        return (None, None);
     }
     let a = &scene.adapted;
     let [_, _, g, _] = a.means.dims();
@@ -330,21 +334,25 @@ fn motion_truth_score(
         .into_data()
         .iter::<f32>()
         .collect();
-    motion_score(
-        &PredictedMotion {
-            context: tc,
-            frames: n,
-            grid: (input[0], input[1]),
-            means: &means,
-            motions: &motions,
-            extrinsics: pred_poses,
-        },
-        &MotionTruth {
-            size: (clip.height, clip.width),
-            frames: &clip.motion_truth,
-            masks: &clip.dynamic_masks,
-        },
-    )
+    let pred = PredictedMotion {
+        context: tc,
+        frames: n,
+        grid: (input[0], input[1]),
+        means: &means,
+        motions: &motions,
+        extrinsics: pred_poses,
+    };
+    let truth = MotionTruth {
+        size: (clip.height, clip.width),
+        frames: &clip.motion_truth,
+        masks: &clip.dynamic_masks,
+    };
+    let maps = if opts.motion_maps {
+        pair_maps(&pred, &truth)
+    } else {
+        None
+    };
+    (motion_score(&pred, &truth), maps)
 }
 
 /// The JSON name of a depth alignment.

@@ -152,6 +152,9 @@ pub struct ClipMetrics {
     pub context_depth_rmse: Option<DepthScore>,
     /// The predicted motion against exact scene flow and dynamic masks (synthetic data).
     pub motion: Option<crate::motion::MotionScore>,
+    /// Per-pixel motion of one pair (`EvalOptions::motion_maps`); never in the JSON.
+    #[serde(skip)]
+    pub motion_maps: Option<crate::motion_maps::PairMaps>,
 }
 
 impl ClipMetrics {
@@ -280,6 +283,7 @@ pub fn mean_metrics(clips: &[ClipMetrics]) -> Option<ClipMetrics> {
                 .filter_map(|c| c.motion.as_ref())
                 .collect::<Vec<_>>(),
         ),
+        motion_maps: None,
     })
 }
 

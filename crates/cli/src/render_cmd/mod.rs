@@ -9,7 +9,7 @@
 //! Modules: [`input`] (model and frames), [`outputs`] (options, steps, manifest), [`views`]
 //! (rasterizing), [`motion_maps`], [`poses`], [`colormap`], [`export`].
 
-mod colormap;
+pub(crate) mod colormap;
 mod export;
 mod input;
 mod motion_maps;
