@@ -22,6 +22,7 @@ pub mod error;
 pub mod markdown;
 pub mod motion;
 pub mod motion_maps;
+mod motion_scene;
 pub mod pose_error;
 pub mod protocol;
 pub mod regions;

@@ -8,6 +8,7 @@ pub mod footprint;
 pub mod motion;
 pub mod nuscenes_writer;
 pub mod preset;
+pub mod preset_kind;
 pub mod road;
 pub mod shapes;
 pub mod storm_writer;
