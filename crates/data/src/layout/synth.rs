@@ -171,15 +171,22 @@ pub fn scan(root: &Path, spec: &ClipSpec, stride: usize) -> Result<Scan> {
     Ok(scan)
 }
 
-/// A `dynamic_mask/*.png` (8-bit, 255 = moving) as booleans; it must have the frame's size.
-fn read_mask(path: &Path, (h, w): (usize, usize)) -> Result<Vec<bool>> {
+/// A ground-truth PNG of the frame's `(h, w)` size, decoded; `what` names it in the error.
+fn read_frame_png(path: &Path, (h, w): (usize, usize), what: &str) -> Result<image::DynamicImage> {
     let bytes = std::fs::read(path).map_err(|e| DataError::gt(path, e.to_string()))?;
-    let img = image::load_from_memory(&bytes)
-        .map_err(|e| DataError::gt(path, e.to_string()))?
-        .to_luma8();
+    let img = image::load_from_memory(&bytes).map_err(|e| DataError::gt(path, e.to_string()))?;
     if (img.height() as usize, img.width() as usize) != (h, w) {
-        return Err(DataError::gt(path, "mask size differs from the frame size"));
+        return Err(DataError::gt(
+            path,
+            format!("{what} size differs from the frame size"),
+        ));
     }
+    Ok(img)
+}
+
+/// A `dynamic_mask/*.png` (8-bit, 255 = moving) as booleans; it must have the frame's size.
+fn read_mask(path: &Path, size: (usize, usize)) -> Result<Vec<bool>> {
+    let img = read_frame_png(path, size, "mask")?.to_luma8();
     Ok(img.into_raw().iter().map(|&v| v >= MASK_ON).collect())
 }
 
@@ -194,20 +201,11 @@ fn read_tracks(path: &Path) -> Result<Option<Vec<Track>>> {
 }
 
 /// An `instance/*.png` (16-bit object ids) of the frame's size; `None` when absent.
-fn read_instance(path: &Path, (h, w): (usize, usize)) -> Result<Option<Vec<u16>>> {
+fn read_instance(path: &Path, size: (usize, usize)) -> Result<Option<Vec<u16>>> {
     if !path.exists() {
         return Ok(None);
     }
-    let bytes = std::fs::read(path).map_err(|e| DataError::gt(path, e.to_string()))?;
-    let img = image::load_from_memory(&bytes)
-        .map_err(|e| DataError::gt(path, e.to_string()))?
-        .to_luma16();
-    if (img.height() as usize, img.width() as usize) != (h, w) {
-        return Err(DataError::gt(
-            path,
-            "instance map size differs from the frame size",
-        ));
-    }
+    let img = read_frame_png(path, size, "instance map")?.to_luma16();
     Ok(Some(img.into_raw()))
 }
 

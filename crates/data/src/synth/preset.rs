@@ -48,7 +48,7 @@ pub(super) fn lane(
     }
 }
 
-pub(super) fn crossing(s: f64, from_right: bool, speed: f64, accel: f64, wobble: f64) -> Motion {
+fn crossing(s: f64, from_right: bool, speed: f64, accel: f64, wobble: f64) -> Motion {
     let edge = HALF_WIDTH + KERB_WIDTH + 1.5;
     Motion::Crossing {
         s,
