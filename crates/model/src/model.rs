@@ -4,10 +4,10 @@
 use crate::adapter::{adapt, AdaptedGaussians, OpacityMapping, ScaleRange};
 use crate::aggregator::{Aggregator, AggregatorOutput, Temporal};
 use crate::camera_head::CameraHead;
-use crate::config::{ModelConfig, MotionModel, DISPLACEMENT_DIM};
+use crate::config::{ModelConfig, MotionModel};
 use crate::dpt::{depth_activation, DptHead, DptKind};
 use crate::future::{FuturePose, FutureTokens};
-use crate::motion::{displacements, motion_tokens};
+use crate::motion::{displacements, motion_tokens, still_displacements};
 use crate::pose::pose_encoding_to_extri_intri;
 use burn::module::Module;
 use burn::tensor::{Device, Tensor};
@@ -160,8 +160,7 @@ impl Envision4d {
         } else if model == MotionModel::Off {
             // Nothing moves: the head (and its tokens) is skipped altogether.
             let n = backbone.tokens.time.dims()[1];
-            let shape = [b, tc * (n - 1), h, w, DISPLACEMENT_DIM];
-            (Some(Tensor::zeros(shape, &device)), None)
+            (Some(still_displacements(b, tc, n, [h, w], &device)), None)
         } else {
             let time = backbone.tokens.time.clone();
             let n = time.dims()[1];

@@ -14,7 +14,7 @@
 //! (`[B, T_c·(N−1), H, W, 3]`, source-major), so the adapter and renderer are unchanged.
 
 use crate::config::{MotionModel, DISPLACEMENT_DIM, VELOCITY_DIRECTIONS};
-use burn::tensor::Tensor;
+use burn::tensor::{Device, Tensor};
 
 /// The timestamps a source frame moves to: `0..n` without `i`, in order (`idx(i, ·)`).
 pub fn targets_of(i: usize, n: usize) -> Vec<usize> {
@@ -52,6 +52,18 @@ pub fn lift(tap: Tensor<4>, time: Tensor<3>, patch_start: usize) -> Tensor<4> {
         .expand([b, tc, k, hw, c])
         .reshape([b, tc * k, hw, c]);
     x * e
+}
+
+/// Displacements of a scene where nothing moves: zeros in the lifting layout
+/// `[B, T_c·(N−1), H, W, 3]` (batch `b`, `tc` context frames, `n` timestamps, `hw` pixels).
+pub fn still_displacements(
+    b: usize,
+    tc: usize,
+    n: usize,
+    hw: [usize; 2],
+    device: &Device,
+) -> Tensor<5> {
+    Tensor::zeros([b, tc * (n - 1), hw[0], hw[1], DISPLACEMENT_DIM], device)
 }
 
 /// Channels `[FORWARD_VELOCITY]` of the linear-velocity head output: velocity towards later

@@ -12,6 +12,7 @@
 
 use crate::adapter::{gaussians_at, AdaptedGaussians, Exclusion, OpacityMapping};
 use crate::model::{Envision4d, Heads, Predictions};
+use crate::motion::still_displacements;
 use crate::pose::{pose_encoding_to_extri_intri, FOV};
 use burn::tensor::Tensor;
 use envision4d_splat::{render, Cameras, Gaussians, RasterConfig, RenderError};
@@ -88,17 +89,16 @@ pub enum Motion {
 /// [`predict_scene`] with the motion head run or skipped; `Motion::Still` equals
 /// `predict_scene(..).without_motion()` without the head's cost.
 pub fn predict_scene_with(model: &Envision4d, context: Tensor<5>, motion: Motion) -> Result<Scene> {
-    let [_, _, _, h, w] = context.dims();
+    let [b, tc, _, h, w] = context.dims();
+    let device = context.device();
     let heads = Heads {
         motion: motion == Motion::Predicted,
         ..Heads::ALL
     };
-    let mut pred = model.forward(context.clone(), heads);
+    let mut pred = model.forward(context, heads);
     if motion == Motion::Still {
-        let [b, tc, _, _, _] = context.dims();
         let n = pred.backbone.extrinsics.dims()[1];
-        let shape = [b, tc * (n - 1), h, w, crate::config::DISPLACEMENT_DIM];
-        pred.motion_enc = Some(Tensor::zeros(shape, &context.device()));
+        pred.motion_enc = Some(still_displacements(b, tc, n, [h, w], &device));
     }
     let pose = pred.backbone.pose_enc();
     if !pose.clone().into_data().iter::<f64>().all(f64::is_finite) {
