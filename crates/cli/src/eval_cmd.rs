@@ -283,12 +283,19 @@ pub fn run(args: EvalArgs) -> Result<()> {
 
     warm_up(&model, &dataset, &indices, &opts, args.backend)?;
     let progress = bar(indices.len());
+    // Only the first --motion-images clips' maps are kept: a map set is 3 floats a pixel.
+    let mut maps = Vec::new();
     let run = evaluate_dataset(&model, &dataset, &indices, &opts, |m| {
         progress.suspend(|| println!("{}", m.summary_line()));
         progress.inc(1);
+        if let Some(pair) = m.motion_maps.take() {
+            if maps.len() < args.motion_images {
+                maps.push((m.clip.clone(), pair));
+            }
+        }
     })?;
     progress.finish_and_clear();
-    let images = motion_images::write_motion_images(&args.out, &run.clips, args.motion_images)?;
+    let images = motion_images::write_motion_images(&args.out, &maps)?;
     if args.motion_images > 0 {
         eprintln!(
             "motion images: {images} written to {} (clips with motion truth only)",

@@ -119,7 +119,8 @@ pub struct EvalRun {
     pub skipped: usize,
 }
 
-/// Evaluates clips `indices` of `dataset`, calling `on_clip` after each (progress, logs).
+/// Evaluates clips `indices` of `dataset`, calling `on_clip` after each (progress, logs;
+/// it may take what the run need not keep, such as `motion_maps`).
 /// A clip that fails to decode is skipped and counted; an evaluation error stops the run and
 /// names the clip.
 pub fn evaluate_dataset(
@@ -127,7 +128,7 @@ pub fn evaluate_dataset(
     dataset: &ClipDataset,
     indices: &[usize],
     opts: &EvalOptions,
-    mut on_clip: impl FnMut(&ClipMetrics),
+    mut on_clip: impl FnMut(&mut ClipMetrics),
 ) -> Result<EvalRun> {
     let mut run = EvalRun {
         clips: Vec::with_capacity(indices.len()),
@@ -142,7 +143,7 @@ pub fn evaluate_dataset(
         let host = HostClip::from_clip(&clip).map_err(|e| EvalError::from(e).in_clip(&id))?;
         let mut m = evaluate_clip(model, &host, opts).map_err(|e| e.in_clip(&id))?;
         m.clip = id.clone();
-        on_clip(&m);
+        on_clip(&mut m);
         run.clips.push(m);
     }
     Ok(run)

@@ -132,7 +132,7 @@ fn flow_scale(pred: &PredictedMotion, truth: &[&FrameMotionTruth], map: &[usize]
 /// Prediction and truth of one clip made comparable: metres (the clip's scale), each side
 /// in its own frame-0 camera axes, on the prediction grid.
 pub(crate) struct Aligned<'a> {
-    pred: &'a PredictedMotion<'a>,
+    pub pred: &'a PredictedMotion<'a>,
     frames: Vec<&'a FrameMotionTruth>,
     /// Frame-grid pixel of each prediction pixel.
     map: Vec<usize>,
@@ -190,8 +190,12 @@ impl<'a> Aligned<'a> {
 
 /// Scores `pred` against `truth`; `None` when a frame lacks truth or no scale can be fitted.
 pub fn motion_score(pred: &PredictedMotion, truth: &MotionTruth) -> Option<MotionScore> {
-    let (tc, n) = (pred.context, pred.frames);
-    let a = Aligned::new(pred, truth)?;
+    Aligned::new(pred, truth).map(|a| score_aligned(&a, truth.masks))
+}
+
+/// The score of an aligned clip; `masks` are the clip's dynamic masks per frame.
+pub(crate) fn score_aligned(a: &Aligned, masks: &[Option<Vec<bool>>]) -> MotionScore {
+    let (tc, n) = (a.pred.context, a.pred.frames);
     let mut pairs = Vec::with_capacity(tc * (n - 1));
     for i in 0..tc {
         for j in (0..n).filter(|&j| j != i) {
@@ -206,7 +210,7 @@ pub fn motion_score(pred: &PredictedMotion, truth: &MotionTruth) -> Option<Motio
     }
     let per_frame_iou: Vec<Option<f64>> = (0..tc)
         .map(|i| {
-            let mask = truth.masks.get(i)?.as_ref()?;
+            let mask = masks.get(i)?.as_ref()?;
             let moving =
                 (0..a.pixels()).map(|k| a.predicted(i, i + 1, k).length() > MASK_THRESHOLD_M);
             iou(moving, a.map.iter().map(|&c| mask[c]))
@@ -214,7 +218,7 @@ pub fn motion_score(pred: &PredictedMotion, truth: &MotionTruth) -> Option<Motio
         .collect();
     let future: Vec<&FlowPairScore> = pairs.iter().filter(|p| p.target >= tc).collect();
     let over = |f: fn(&FlowPairScore) -> Option<f64>| mean_opt(future.iter().map(|p| f(p)));
-    Some(MotionScore {
+    MotionScore {
         flow_scale: a.scale,
         epe_dynamic: over(|p| p.epe_dynamic),
         epe_static: over(|p| p.epe_static),
@@ -224,7 +228,7 @@ pub fn motion_score(pred: &PredictedMotion, truth: &MotionTruth) -> Option<Motio
         mask_threshold_m: MASK_THRESHOLD_M,
         per_frame_iou,
         pairs,
-    })
+    }
 }
 
 /// Intersection over union of two masks; `None` when both are empty.

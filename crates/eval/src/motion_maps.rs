@@ -3,7 +3,7 @@
 //! The pair is the longest extrapolation from the newest context frame: source `T_c − 1`,
 //! target `N − 1`.
 
-use crate::motion::{Aligned, MotionTruth, PredictedMotion};
+use crate::motion::Aligned;
 
 /// Per-pixel lengths (metres) of one (source, target) pair, row-major `H·W`; `NaN` where the
 /// pixel has no truth (sky), in `truth` and `error`.
@@ -18,15 +18,13 @@ pub struct PairMaps {
     pub error: Vec<f32>,
 }
 
-/// The maps of pair (`T_c − 1`, `N − 1`); `None` where [`crate::motion::motion_score`] has
-/// no score.
-pub fn pair_maps(pred: &PredictedMotion, truth: &MotionTruth) -> Option<PairMaps> {
-    let a = Aligned::new(pred, truth)?;
-    let (i, j) = (pred.context - 1, pred.frames - 1);
+/// The maps of pair (`T_c − 1`, `N − 1`) of an aligned clip.
+pub(crate) fn pair_maps(a: &Aligned) -> PairMaps {
+    let (i, j) = (a.pred.context - 1, a.pred.frames - 1);
     let mut maps = PairMaps {
         source: i,
         target: j,
-        size: pred.grid,
+        size: a.pred.grid,
         truth: Vec::with_capacity(a.pixels()),
         predicted: Vec::with_capacity(a.pixels()),
         error: Vec::with_capacity(a.pixels()),
@@ -38,7 +36,7 @@ pub fn pair_maps(pred: &PredictedMotion, truth: &MotionTruth) -> Option<PairMaps
         maps.error
             .push(d.map_or(f32::NAN, |d| (p - d).length() as f32));
     }
-    Some(maps)
+    maps
 }
 
 impl PairMaps {

@@ -1,7 +1,7 @@
 //! The protocol's motion step: the scene's Gaussian means and displacements read back to the
 //! host and scored against the clip's exact scene flow (`motion`, `motion_maps`).
 
-use crate::motion::{motion_score, MotionScore, MotionTruth, PredictedMotion};
+use crate::motion::{score_aligned, Aligned, MotionScore, MotionTruth, PredictedMotion};
 use crate::motion_maps::{pair_maps, PairMaps};
 use crate::EvalOptions;
 use envision4d_data::geom::Mat4;
@@ -53,10 +53,10 @@ pub(crate) fn motion_truth_score(
         frames: &clip.motion_truth,
         masks: &clip.dynamic_masks,
     };
-    let maps = if opts.motion_maps {
-        pair_maps(&pred, &truth)
-    } else {
-        None
+    // One alignment (scale, axes, grid) serves the score and the maps.
+    let Some(aligned) = Aligned::new(&pred, &truth) else {
+        return (None, None);
     };
-    (motion_score(&pred, &truth), maps)
+    let maps = opts.motion_maps.then(|| pair_maps(&aligned));
+    (Some(score_aligned(&aligned, truth.masks)), maps)
 }

@@ -8,7 +8,6 @@ use crate::image_out::write_rgb;
 use crate::render_cmd::colormap::ramp;
 use anyhow::{Context, Result};
 use envision4d_eval::motion_maps::PairMaps;
-use envision4d_eval::ClipMetrics;
 use std::path::Path;
 
 /// Sub-folder of the images.
@@ -72,25 +71,24 @@ fn file_stem(clip: &str) -> String {
         .collect()
 }
 
-/// Writes the images of the first `limit` clips with maps; returns how many were written.
-pub fn write_motion_images(out: &Path, clips: &[ClipMetrics], limit: usize) -> Result<usize> {
+/// Writes the images of `maps` (clip id, maps); returns how many were written.
+pub fn write_motion_images(out: &Path, maps: &[(String, PairMaps)]) -> Result<usize> {
     let dir = out.join(MOTION_IMAGES_DIR);
     let mut written = 0;
-    for c in clips.iter().filter(|c| c.motion_maps.is_some()).take(limit) {
-        let m = c.motion_maps.as_ref().expect("filtered");
+    for (clip, m) in maps {
         if written == 0 {
             envision4d_data::atomic::create_dir(&dir)
                 .with_context(|| format!("creating {}", dir.display()))?;
         }
         let scale = m.scale_max(SCALE_FLOOR_M);
-        let stem = format!("{}_{}to{}", file_stem(&c.clip), m.source, m.target);
+        let stem = format!("{}_{}to{}", file_stem(clip), m.source, m.target);
         let (width, rgb) = panels(m, scale);
         let factor = MIN_PANEL_HEIGHT.div_ceil(m.size.0.max(1)).max(1);
         let rgb = enlarge(width, m.size.0, &rgb, factor);
         let path = dir.join(format!("{stem}.png"));
         write_rgb(&path, width * factor, m.size.0 * factor, &rgb)?;
         let side = serde_json::json!({
-            "clip": c.clip,
+            "clip": clip,
             "source": m.source,
             "target": m.target,
             "scale_max_m": scale,
