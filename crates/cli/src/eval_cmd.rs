@@ -288,10 +288,10 @@ pub fn run(args: EvalArgs) -> Result<()> {
     let run = evaluate_dataset(&model, &dataset, &indices, &opts, |m| {
         progress.suspend(|| println!("{}", m.summary_line()));
         progress.inc(1);
-        if let Some(pair) = m.motion_maps.take() {
-            if maps.len() < args.motion_images {
-                maps.push((m.clip.clone(), pair));
-            }
+        if let Some(pair) = m.motion_maps.take()
+            && maps.len() < args.motion_images
+        {
+            maps.push((m.clip.clone(), pair));
         }
     })?;
     progress.finish_and_clear();
