@@ -109,8 +109,9 @@ for v in $VARIANTS; do
 done
 
 echo "== table"
-# With CML trained, its displacements zeroed at test time are a row too ("cml-zeroed").
+# With CML trained, its displacements zeroed at test time and replaced by the exact flow are
+# rows too ("cml-zeroed", "cml-oracle").
 TABLE_ROWS=$VARIANTS
-case " $VARIANTS " in *" cml "*) TABLE_ROWS="$VARIANTS cml-zeroed" ;; esac
+case " $VARIANTS " in *" cml "*) TABLE_ROWS="$VARIANTS cml-zeroed cml-oracle" ;; esac
 python3 "$(dirname "$0")/motion_table.py" "$RUNS" "$TABLE_ROWS" "$SEEDS" "$PRESETS" \
   | tee "$RUNS/motion-table.md"

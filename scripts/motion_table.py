@@ -12,8 +12,11 @@ seeds and held-out clips of:
 and, against the reference variant (CML, the paper's), the paired difference per held-out
 clip (each clip's value averaged over seeds first) with a 95% t-interval over clips.
 "cml-zeroed" is the CML runs with their displacements zeroed at test time (the eval's
-`no_motion` method): its EPE is the true displacement and its IoU 0. "motion-off" is the
-variant trained without motion.
+`no_motion` method): its EPE is the true displacement and its IoU 0. "cml-oracle" is the CML
+runs' Gaussians moved by the exact scene flow (the eval's `oracle_motion` method): its EPE is
+0 by construction, its PSNR the most any motion could add to that reconstruction.
+"motion-off" is the variant trained without motion. Without "cml" among the variants the
+paired columns are left out.
 
 Standard library only. Usage: motion_table.py RUNS_DIR "variants" "seeds" "presets"
 """
@@ -27,7 +30,8 @@ T975 = [12.706, 4.303, 3.182, 2.776, 2.571, 2.447, 2.365, 2.306, 2.262, 2.228, 2
         2.160, 2.145, 2.131, 2.120, 2.110, 2.101, 2.093, 2.086, 2.080, 2.074, 2.069, 2.064,
         2.060, 2.056, 2.052, 2.048, 2.045, 2.042]
 REFERENCE = "cml"
-OFF = "cml-zeroed"
+# Rows computed from the reference's runs: test-time zeroed and oracle displacements.
+DERIVED = {"cml-zeroed": "no_motion", "cml-oracle": "oracle_motion"}
 
 
 def t975(df):
@@ -39,26 +43,32 @@ def t975(df):
     return 1.96 + 2.4 / df
 
 
-def model_values(clip, off):
-    """The five numbers of one clip for the model (or its motion-off baseline)."""
-    method = "no_motion" if off else "model"
-    m = next(x for x in clip["methods"] if x["method"] == method)
+def model_values(clip, method):
+    """The five numbers of one clip for the model, or one of its derived methods."""
+    m = next((x for x in clip["methods"] if x["method"] == method), None)
+    if m is None:
+        sys.exit(f"clip {clip['clip']} has no '{method}' method (evaluated before the "
+                 f"eval had it? delete that eval-*/ folder and rerun scripts/motion_bench.sh)")
     motion = clip.get("motion") or {}
-    if off:
+    if method == "no_motion":
         epe = motion.get("true_displacement")
         rel = 1.0 if epe is not None else None
         iou = 0.0 if motion.get("mask_iou") is not None else None
+    elif method == "oracle_motion":
+        has = motion.get("epe_dynamic") is not None
+        epe, rel, iou = (0.0 if has else None), (0.0 if has else None), None
     else:
         epe, rel, iou = (motion.get(k) for k in ("epe_dynamic", "rel_epe_dynamic", "mask_iou"))
     return {"dyn": m.get("dynamic_psnr"), "epe": epe, "rel": rel, "iou": iou, "psnr": m["psnr"]}
 
 
 def load(runs, variant, seed, preset):
-    src = REFERENCE if variant == OFF else variant
+    src = REFERENCE if variant in DERIVED else variant
+    method = DERIVED.get(variant, "model")
     path = os.path.join(runs, f"{src}-s{seed}", f"eval-{preset}", "metrics.json")
     with open(path) as f:
         report = json.load(f)
-    return {c["clip"]: model_values(c, variant == OFF) for c in report["clips"]}
+    return {c["clip"]: model_values(c, method) for c in report["clips"]}
 
 
 def per_clip(runs, variant, seeds, preset):
@@ -101,8 +111,9 @@ def main():
              f"over clips.", ""]
     for preset in presets:
         table = {v: per_clip(runs, v, seeds, preset) for v in variants}
-        ref = table[REFERENCE]
-        lines.append(f"### {preset} ({len(ref)} held-out clips)")
+        ref = table.get(REFERENCE)
+        clips = len(next(iter(table.values())))
+        lines.append(f"### {preset} ({clips} held-out clips)")
         lines.append("")
         head = " | ".join(k[2] for k in keys)
         lines.append(f"| variant | {head} | Δ dyn PSNR | Δ EPE |")
@@ -112,7 +123,7 @@ def main():
             cells = [fmt(mean(c[k] for c in t.values()), d) for k, d, _ in keys]
             deltas = []
             for key, digits in (("dyn", 2), ("epe", 3)):
-                if v == REFERENCE:
+                if v == REFERENCE or ref is None:
                     deltas.append("")
                     continue
                 m, h, _ = paired(ref, t, key)

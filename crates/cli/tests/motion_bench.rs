@@ -61,6 +61,7 @@ fn motion_bench_smoke_runs_every_stage() {
         "| linear-velocity |",
         "| motion-off |",
         "| cml-zeroed |",
+        "| cml-oracle |",
     ] {
         assert!(table.contains(v), "{table}");
     }

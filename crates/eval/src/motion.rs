@@ -133,7 +133,7 @@ fn flow_scale(pred: &PredictedMotion, truth: &[&FrameMotionTruth], map: &[usize]
 /// in its own frame-0 camera axes, on the prediction grid.
 pub(crate) struct Aligned<'a> {
     pub pred: &'a PredictedMotion<'a>,
-    frames: Vec<&'a FrameMotionTruth>,
+    pub frames: Vec<&'a FrameMotionTruth>,
     /// Frame-grid pixel of each prediction pixel.
     map: Vec<usize>,
     pub scale: f64,
@@ -175,6 +175,13 @@ impl<'a> Aligned<'a> {
     pub fn predicted(&self, i: usize, j: usize, k: usize) -> DVec3 {
         let slot = (i * (self.pred.frames - 1) + target_slot(i, j)) * self.map.len() + k;
         self.rp * read3(self.pred.motions, slot)
+    }
+
+    /// A displacement in the scored axes (frame-0 camera, metres) brought back to the
+    /// prediction's own world axes and unit: the inverse of the map [`Aligned::predicted`]
+    /// applies.
+    pub fn to_model_axes(&self) -> DMat3 {
+        self.rp.inverse()
     }
 
     /// True displacement of every prediction pixel of source `i` to timestamp `j`; `None`

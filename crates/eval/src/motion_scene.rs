@@ -1,16 +1,35 @@
 //! The protocol's motion step: the scene's Gaussian means and displacements read back to the
-//! host and scored against the clip's exact scene flow (`motion`, `motion_maps`).
+//! host and scored against the clip's exact scene flow (`motion`, `motion_maps`), and the
+//! exact displacements in the model's own units for the oracle-motion render.
 
+use crate::error::Result;
 use crate::motion::{score_aligned, Aligned, MotionScore, MotionTruth, PredictedMotion};
 use crate::motion_maps::{pair_maps, PairMaps};
+use crate::pose_error::extrinsics_tensor;
+use crate::protocol::timed_render;
+use crate::report::Method;
 use crate::EvalOptions;
+use burn::tensor::{Device, Tensor, TensorData};
 use envision4d_data::geom::Mat4;
 use envision4d_data::HostClip;
+use envision4d_losses::HostImages;
+use envision4d_model::adapter::Exclusion;
 use envision4d_model::scene::Scene;
 
-/// The predicted displacements against the clip's exact scene flow (`motion`), and the
-/// per-pixel maps when asked for; `None` when the clip has no motion truth (nothing is read
-/// back then).
+/// What the motion truth of one clip gives the protocol.
+#[derive(Default)]
+pub(crate) struct MotionTruthOut {
+    pub score: Option<MotionScore>,
+    pub maps: Option<PairMaps>,
+    /// `[T_c, N−1, G, 3]` exact displacements ([`oracle_motions`]).
+    pub oracle: Option<Vec<f32>>,
+    /// The true world-to-camera of all `N` frames in the model's frame ([`true_cameras`]).
+    pub cameras: Option<Vec<Mat4>>,
+}
+
+/// The predicted displacements against the clip's exact scene flow, the per-pixel maps when
+/// asked for, and the oracle's displacements; all `None` when the clip has no motion truth
+/// (nothing is read back then).
 pub(crate) fn motion_truth_score(
     scene: &Scene,
     clip: &HostClip,
@@ -19,9 +38,9 @@ pub(crate) fn motion_truth_score(
     input: [usize; 2],
     pred_poses: &[Mat4],
     opts: &EvalOptions,
-) -> (Option<MotionScore>, Option<PairMaps>) {
+) -> MotionTruthOut {
     if clip.motion_truth.len() < n {
-        return (None, None);
+        return MotionTruthOut::default();
     }
     let a = &scene.adapted;
     let [_, _, g, _] = a.means.dims();
@@ -53,10 +72,148 @@ pub(crate) fn motion_truth_score(
         frames: &clip.motion_truth,
         masks: &clip.dynamic_masks,
     };
-    // One alignment (scale, axes, grid) serves the score and the maps.
+    // One alignment (scale, axes, grid) serves the score, the maps and the oracle.
     let Some(aligned) = Aligned::new(&pred, &truth) else {
-        return (None, None);
+        return MotionTruthOut::default();
     };
-    let maps = opts.motion_maps.then(|| pair_maps(&aligned));
-    (Some(score_aligned(&aligned, truth.masks)), maps)
+    MotionTruthOut {
+        score: Some(score_aligned(&aligned, truth.masks)),
+        maps: opts.motion_maps.then(|| pair_maps(&aligned)),
+        oracle: Some(oracle_motions(&aligned)),
+        cameras: Some(true_cameras(&aligned)),
+    }
 }
+
+/// The exact displacement of every context Gaussian to every other timestamp, in the
+/// prediction's world axes and unit, laid out as one batch element of
+/// `AdaptedGaussians::motions` (`[T_c, N−1, G, 3]`, targets ascending without the source):
+/// each Gaussian moves as the true surface seen at its pixel does, zero where the pixel sees
+/// no surface (sky). Rendering the model's Gaussians with these isolates what motion alone
+/// can still gain on this reconstruction: depth, colour and pose errors stay the model's.
+pub(crate) fn oracle_motions(a: &Aligned) -> Vec<f32> {
+    let (tc, n, g) = (a.pred.context, a.pred.frames, a.pixels());
+    let back = a.to_model_axes();
+    let mut out = Vec::with_capacity(tc * (n - 1) * g * 3);
+    for i in 0..tc {
+        for j in (0..n).filter(|&j| j != i) {
+            for d in a.truth(i, j) {
+                let m = d.map_or(glam::DVec3::ZERO, |d| back * d);
+                out.extend([m.x as f32, m.y as f32, m.z as f32]);
+            }
+        }
+    }
+    out
+}
+
+/// The true cameras of all `N` frames expressed in the prediction's world and unit, so the
+/// model's Gaussians can be rendered where the real camera stood: the true frame-0 camera is
+/// taken to be the predicted frame-0 camera (a pose-free model's origin), the true relative
+/// motion `Q_j = W_j·W_0⁻¹` is applied after it, and its translation is divided by the clip's
+/// scale (metres per model unit): `E_j = [R_Q·R_0 | R_Q·t_0 + t_Q/s]`. Pixels project as
+/// with the metric cameras, since camera coordinates only shrink by `s`.
+pub(crate) fn true_cameras(a: &Aligned) -> Vec<Mat4> {
+    let e0 = a.pred.extrinsics[0].to_glam();
+    let w0_inv = a.frames[0].world_to_camera.rigid_inverse().to_glam();
+    a.frames
+        .iter()
+        .map(|f| {
+            let q = f.world_to_camera.to_glam() * w0_inv;
+            let rq = glam::DMat3::from_mat4(q);
+            let t = rq * e0.w_axis.truncate() + q.w_axis.truncate() / a.scale;
+            let r = rq * glam::DMat3::from_mat4(e0);
+            Mat4::from_glam(glam::DMat4::from_cols(
+                r.x_axis.extend(0.0),
+                r.y_axis.extend(0.0),
+                r.z_axis.extend(0.0),
+                t.extend(1.0),
+            ))
+        })
+        .collect()
+}
+
+/// One oracle render: its method, frames, the cameras it was rendered at, and seconds.
+pub(crate) struct OracleRender {
+    pub method: Method,
+    pub images: HostImages,
+    pub poses: Vec<Mat4>,
+    pub secs: f64,
+}
+
+/// The oracle renders of one clip (`EVAL.md`, "Baselines"): the model's Gaussians with the
+/// exact displacements at its own cameras, and with no, its own and the exact displacements
+/// at the true cameras (true intrinsics too). Together with `model` and `no_motion` they
+/// split the future-frame error into what motion, and what the cameras, leave.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn oracle_renders(
+    scene: &Scene,
+    truth: &MotionTruthOut,
+    clip: &HostClip,
+    extr: &Tensor<4>,
+    intr: &Tensor<4>,
+    pred_poses: &[Mat4],
+    future: &[usize],
+    opts: &EvalOptions,
+) -> Result<Vec<OracleRender>> {
+    let (Some(oracle), Some(cameras)) = (&truth.oracle, &truth.cameras) else {
+        return Ok(Vec::new());
+    };
+    let size = [clip.height, clip.width];
+    let device = extr.device();
+    let mut exact = scene.adapted.clone();
+    let [_, tc, k, g, _] = exact.motions.dims();
+    let data = TensorData::new(oracle.clone(), [1, tc, k, g, 3]);
+    exact.motions = Tensor::from_data(data, &device);
+    let still = scene.without_motion().adapted;
+    let true_extr = extrinsics_tensor(cameras, &device);
+    let true_intr = intrinsics_tensor(clip, cameras.len(), &device);
+    let runs = [
+        (Method::OracleMotion, &exact, extr, intr, pred_poses),
+        (
+            Method::TrueCamerasNoMotion,
+            &still,
+            &true_extr,
+            &true_intr,
+            cameras,
+        ),
+        (
+            Method::TrueCameras,
+            &scene.adapted,
+            &true_extr,
+            &true_intr,
+            cameras,
+        ),
+        (
+            Method::TrueCamerasOracleMotion,
+            &exact,
+            &true_extr,
+            &true_intr,
+            cameras,
+        ),
+    ];
+    let own = Exclusion::SelfExclusive;
+    let mut out = Vec::with_capacity(runs.len());
+    for (method, gaussians, e, i, poses) in runs {
+        let (r, secs) = timed_render(gaussians, e, i, future, size, opts, own)?;
+        out.push(OracleRender {
+            method,
+            images: r.images,
+            poses: poses.to_vec(),
+            secs,
+        });
+    }
+    Ok(out)
+}
+
+/// The clip's true intrinsics of its first `n` frames, `[1, n, 3, 3]`, at the clip's size.
+fn intrinsics_tensor(clip: &HostClip, n: usize, device: &Device) -> Tensor<4> {
+    let data: Vec<f32> = clip.cameras[..n]
+        .iter()
+        .flat_map(|(_, k)| [k.fx, 0.0, k.cx, 0.0, k.fy, k.cy, 0.0, 0.0, 1.0])
+        .map(|v| v as f32)
+        .collect();
+    Tensor::from_data(TensorData::new(data, [1, n, 3, 3]), device)
+}
+
+#[cfg(test)]
+#[path = "motion_scene_tests.rs"]
+mod tests;

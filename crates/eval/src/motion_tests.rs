@@ -146,3 +146,53 @@ fn smaller_prediction_grid_reads_covering_pixels() {
     assert_eq!(grid_map((1, 2), (2, 4)), vec![5, 7]);
     assert_eq!(grid_map((2, 2), (2, 2)), vec![0, 1, 2, 3]);
 }
+
+/// Guards the oracle-motion render's displacements: the exact flow brought back to the
+/// prediction's own world axes (here not its camera axes) and unit (half a metre) scores zero
+/// error and a perfect mask, and the car's steps come out along model-world +x.
+#[test]
+fn oracle_displacements_score_zero_error() {
+    let truth = [frame(5.0), frame(6.0), frame(8.0)];
+    // The model's world is the true world at half scale, its cameras look along +x too.
+    let extrinsics = [looking_along_x(); 3];
+    #[rustfmt::skip]
+    let means: [f32; 12] = [
+        5.0, 0.0, 0.0,  2.5, 0.5, 0.0,
+        5.0, 0.0, 0.0,  3.0, 0.5, 0.0,
+    ];
+    let masks = vec![Some(vec![false, true]), Some(vec![false, true]), None];
+    let t = MotionTruth {
+        size: (1, 2),
+        frames: &truth,
+        masks: &masks,
+    };
+    let pred = |motions| PredictedMotion {
+        context: 2,
+        frames: 3,
+        grid: (1, 2),
+        means: &means,
+        motions,
+        extrinsics: &extrinsics,
+    };
+    let zeros = [0.0f32; 24];
+    let still = pred(&zeros);
+    let a = Aligned::new(&still, &t).expect("complete truth");
+    assert!((a.scale - 2.0).abs() < 1e-12, "{}", a.scale);
+    let oracle = crate::motion_scene::oracle_motions(&a);
+    // Car along +x by 0.5 (0→1), 1.5 (0→2), −0.5 (1→0), 1.0 (1→2) model units; ground still.
+    let car: Vec<f32> = oracle.chunks(3).skip(1).step_by(2).map(|c| c[0]).collect();
+    assert_eq!(car, vec![0.5, 1.5, -0.5, 1.0]);
+    assert!(oracle
+        .chunks(3)
+        .enumerate()
+        .all(|(k, c)| c[1] == 0.0 && c[2] == 0.0 && (k % 2 == 1 || c[0] == 0.0)));
+    let s = motion_score(&pred(&oracle), &t).expect("complete truth");
+    assert!(
+        close(s.epe_dynamic, 0.0) && close(s.epe_static, 0.0),
+        "{s:?}"
+    );
+    assert!(
+        close(s.rel_epe_dynamic, 0.0) && close(s.mask_iou, 1.0),
+        "{s:?}"
+    );
+}

@@ -12,7 +12,7 @@ use crate::baselines::{
 use crate::cross_frame::cross_frame;
 use crate::depth_eval::{depth_score, upsample_nearest, DepthTruth};
 use crate::error::{EvalError, Result};
-use crate::motion_scene::motion_truth_score;
+use crate::motion_scene::{motion_truth_score, oracle_renders};
 use crate::pose_error::{
     extrinsics_tensor, host_extrinsics, pose_error, relative_to_first, to_extrinsic,
     translation_scale,
@@ -109,7 +109,7 @@ pub fn evaluate_clip(
         context = Some(ctx);
         depth = rendered_depth_score(&rendered, clip, &future, opts)?;
         context_depth = head_depth_score(&scene, clip, tc, opts)?;
-        (motion, motion_maps) = motion_truth_score(&scene, clip, tc, n, input, &pred_poses, opts);
+        let truth = motion_truth_score(&scene, clip, tc, n, input, &pred_poses, opts);
         methods.extend(baselines(
             &scene,
             clip,
@@ -118,6 +118,20 @@ pub fn evaluate_clip(
             &intr,
             encoder_s,
         )?);
+        let oracles = oracle_renders(
+            &scene,
+            &truth,
+            clip,
+            &extr,
+            &intr,
+            &pred_poses,
+            &future,
+            opts,
+        )?;
+        for o in oracles {
+            methods.push(scorer.score(o.method, &o.images, &o.poses, encoder_s + o.secs)?);
+        }
+        (motion, motion_maps) = (truth.score, truth.maps);
     }
     Ok(ClipMetrics {
         clip: String::new(),

@@ -19,6 +19,16 @@ pub enum Method {
     StaticCv,
     /// Motion disabled, the model's own future poses.
     NoMotion,
+    /// The model's Gaussians and poses, each Gaussian moved by the exact scene flow of the
+    /// true surface at its pixel (synthetic data): what exact motion adds to this
+    /// reconstruction.
+    OracleMotion,
+    /// Motion disabled, rendered at the true cameras (synthetic data).
+    TrueCamerasNoMotion,
+    /// The model's motion, rendered at the true cameras.
+    TrueCameras,
+    /// The exact motion, rendered at the true cameras: what remains is depth and appearance.
+    TrueCamerasOracleMotion,
 }
 
 impl Method {
@@ -29,6 +39,10 @@ impl Method {
             Method::CopyLast => "copy-last",
             Method::StaticCv => "static+cv",
             Method::NoMotion => "no-motion",
+            Method::OracleMotion => "oracle-motion",
+            Method::TrueCamerasNoMotion => "true-cams no-motion",
+            Method::TrueCameras => "true-cams model",
+            Method::TrueCamerasOracleMotion => "true-cams oracle",
         }
     }
 }
@@ -251,13 +265,20 @@ pub fn mean(values: impl IntoIterator<Item = f64>) -> f64 {
 /// as a [`ClipMetrics`] named `"mean"`; `None` for no clips. Methods and per-frame entries
 /// are matched by method and position: clips of one run share `T_c`, `T_f` and methods.
 pub fn mean_metrics(clips: &[ClipMetrics]) -> Option<ClipMetrics> {
-    let first = clips.first()?;
-    let methods = first
-        .methods
-        .iter()
-        .map(|m0| {
-            let all: Vec<&MethodScore> = clips.iter().filter_map(|c| c.method(m0.method)).collect();
-            mean_method(m0.method, &all)
+    clips.first()?;
+    // Every method any clip has, in first-seen order (the oracle needs motion truth, which a
+    // mixed dataset's first clip may lack), each averaged over the clips that have it.
+    let mut order: Vec<Method> = Vec::new();
+    for m in clips.iter().flat_map(|c| &c.methods) {
+        if !order.contains(&m.method) {
+            order.push(m.method);
+        }
+    }
+    let methods = order
+        .into_iter()
+        .map(|method| {
+            let all: Vec<&MethodScore> = clips.iter().filter_map(|c| c.method(method)).collect();
+            mean_method(method, &all)
         })
         .collect();
     let contexts: Vec<&CrossFrameScore> = clips.iter().filter_map(|c| c.context.as_ref()).collect();

@@ -41,8 +41,13 @@ fn time_split(m: &MethodScore, clip: &ClipMetrics) -> String {
     let enc = clip.timing.encoder_s;
     match m.method {
         Method::Model => format!("encoder {enc:.3} + decoder {:.3}", clip.timing.decoder_s),
-        // Both reuse the model's encoder pass and render the motion-free Gaussians.
-        Method::StaticCv | Method::NoMotion => {
+        // They reuse the model's encoder pass and render its Gaussians again.
+        Method::StaticCv
+        | Method::NoMotion
+        | Method::OracleMotion
+        | Method::TrueCamerasNoMotion
+        | Method::TrueCameras
+        | Method::TrueCamerasOracleMotion => {
             format!(
                 "encoder {enc:.3} + renders {:.3}",
                 (m.time_s - enc).max(0.0)
