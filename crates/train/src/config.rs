@@ -365,6 +365,18 @@ impl FreezeGroup {
     ];
 }
 
+/// Modules that keep their fresh initialisation although `init_checkpoint` has them: the
+/// motion benchmark retrains every motion variant's motion from scratch on one trained
+/// reconstruction, so none starts with the paper variant's trained motion.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum FreshGroup {
+    /// `motion_head`: the DPT head of the displacements.
+    MotionHead,
+    /// `time_blocks`: the temporal attention blocks.
+    TimeBlocks,
+}
+
 fn paper_freeze() -> Vec<FreezeGroup> {
     FreezeGroup::PAPER.to_vec()
 }
@@ -378,6 +390,8 @@ pub struct TrainConfig {
     pub freeze: Vec<FreezeGroup>,
     /// Initial weights (VGGT-1B release or a stage-1 checkpoint); random init when absent.
     pub init_checkpoint: Option<PathBuf>,
+    /// Modules not taken from `init_checkpoint` ([`FreshGroup`]).
+    pub init_fresh: Vec<FreshGroup>,
     /// Weights of the frozen teacher (`teacher = "backbone"`); default `init_checkpoint`.
     pub teacher_checkpoint: Option<PathBuf>,
     pub model: ModelConfig,
@@ -401,6 +415,8 @@ pub(crate) struct RawTrainConfig {
     pub freeze: Vec<FreezeGroup>,
     #[serde(default)]
     pub init_checkpoint: Option<PathBuf>,
+    #[serde(default)]
+    pub init_fresh: Vec<FreshGroup>,
     #[serde(default)]
     pub teacher_checkpoint: Option<PathBuf>,
     pub model: toml::Table,

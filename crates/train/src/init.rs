@@ -1,7 +1,7 @@
 //! How a training run's model starts: from a checkpoint (VGGT-1B or stage 1), or from
 //! scratch with a camera head that predicts sane first poses.
 
-use crate::config::{Stage, TrainConfig};
+use crate::config::{FreshGroup, Stage, TrainConfig};
 use crate::error::{Result, TrainError};
 use burn::tensor::Device;
 use envision4d_model::aggregator::Aggregator;
@@ -48,7 +48,8 @@ pub fn build_model(config: &TrainConfig, device: &Device) -> Result<Envision4d> 
 /// modules keep their init) into the paper variant of the model, then carries it over to
 /// the configured ablation variant: the post-layer placement keeps every weight (same
 /// shapes, other wiring), linear velocity keeps its own fresh motion head (6 output
-/// channels where the checkpoint has the 3 of conditioned motion lifting).
+/// channels where the checkpoint has the 3 of conditioned motion lifting). Groups in
+/// `init_fresh` keep the fresh init of `model` whatever the variant.
 fn init_from(
     model: Envision4d,
     config: &TrainConfig,
@@ -61,20 +62,23 @@ fn init_from(
     let mut base = Envision4d::new(&paper, device);
     envision4d_model::checkpoint::load_checkpoint(&mut base, path, CheckpointKind::Vggt1bInit)
         .map_err(|e| TrainError::checkpoint(path, format!("init_checkpoint: {e}")))?;
-    if paper == config.model {
+    let fresh = |g| config.init_fresh.contains(&g);
+    if paper == config.model && config.init_fresh.is_empty() {
         return Ok(base);
     }
-    let motion_head = if config.model.motion_model == paper.motion_model {
-        base.motion_head
-    } else {
-        model.motion_head
-    };
+    let motion_head =
+        if config.model.motion_model == paper.motion_model && !fresh(FreshGroup::MotionHead) {
+            base.motion_head
+        } else {
+            model.motion_head
+        };
     // Without temporal attention the variant has no temporal blocks: keep its (empty) list.
-    let time_blocks = if model.aggregator.placement == TemporalPlacement::None {
-        model.aggregator.time_blocks
-    } else {
-        base.aggregator.time_blocks
-    };
+    let time_blocks =
+        if model.aggregator.placement == TemporalPlacement::None || fresh(FreshGroup::TimeBlocks) {
+            model.aggregator.time_blocks
+        } else {
+            base.aggregator.time_blocks
+        };
     Ok(Envision4d {
         aggregator: Aggregator {
             placement: model.aggregator.placement,

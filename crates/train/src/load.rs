@@ -33,6 +33,7 @@ pub fn parse(text: &str, path: &Path) -> Result<TrainConfig> {
         teacher: raw.teacher,
         freeze: raw.freeze,
         init_checkpoint: raw.init_checkpoint,
+        init_fresh: raw.init_fresh,
         teacher_checkpoint: raw.teacher_checkpoint,
         model,
         optim: raw.optim,
@@ -221,6 +222,13 @@ pub fn validate(cfg: &TrainConfig) -> Result<()> {
             "teacher",
             "\"backbone\"",
             "needs teacher_checkpoint (or init_checkpoint): the frozen backbone's weights",
+        ));
+    }
+    if !cfg.init_fresh.is_empty() && cfg.init_checkpoint.is_none() {
+        return Err(TrainError::invalid(
+            "init_fresh",
+            format!("{:?}", cfg.init_fresh),
+            "keeps modules out of init_checkpoint, which is not set (without it everything is fresh)",
         ));
     }
     if cfg.data.stride == 0 {

@@ -145,7 +145,9 @@ fn nan_guard_stops_run_and_keeps_last_checkpoint() {
 
 /// Guards the backbone stage and the frozen teacher: stage 1 trains only what plain VGGT has
 /// (the Gaussian head gets no update) and lowers its loss; its checkpoint then serves as the
-/// `teacher = "backbone"` of stage 2, whose steps apply and carry a camera term.
+/// `teacher = "backbone"` of stage 2, whose steps apply and carry a camera term; variants
+/// and `init_fresh` initialise from it (an `init_fresh` that loaded the motion head anyway
+/// would hand one variant a trained motion).
 #[test]
 fn backbone_stage_then_teacher() {
     let tmp = tempfile::tempdir().unwrap();
@@ -214,6 +216,34 @@ fn backbone_stage_then_teacher() {
         assert_eq!(flat_params(&m.depth_head), flat_params(&t.model.depth_head));
         assert_eq!(m.aggregator.placement, placement);
     }
+
+    // `init_fresh` keeps the motion head and the temporal blocks out of the checkpoint (the
+    // motion benchmark's variants all retrain their motion from scratch); the rest loads.
+    let mut v = c.clone();
+    v.stage = Stage::Envision4d;
+    v.init_checkpoint = Some(ckpt.clone());
+    let kept = envision4d_train::step::build_model(&v, &device).unwrap();
+    assert_eq!(
+        flat_params(&kept.motion_head),
+        flat_params(&t.model.motion_head)
+    );
+    v.init_fresh = vec![
+        envision4d_train::config::FreshGroup::MotionHead,
+        envision4d_train::config::FreshGroup::TimeBlocks,
+    ];
+    let fresh = envision4d_train::step::build_model(&v, &device).unwrap();
+    assert_ne!(
+        flat_params(&fresh.motion_head),
+        flat_params(&t.model.motion_head)
+    );
+    assert_ne!(
+        flat_params(&fresh.aggregator.time_blocks),
+        flat_params(&t.model.aggregator.time_blocks)
+    );
+    assert_eq!(
+        flat_params(&fresh.depth_head),
+        flat_params(&t.model.depth_head)
+    );
 
     let mut s = config_at(&data, &tmp.path().join("stage2"));
     s.teacher = Teacher::Backbone;
