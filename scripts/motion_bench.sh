@@ -4,6 +4,14 @@
 #   scripts/motion_bench.sh                      # the whole benchmark (hours on 2 CPU cores)
 #   SEEDS="0" VARIANTS="cml linear-velocity" scripts/motion_bench.sh   # a part of it
 #   SMOKE=1 scripts/motion_bench.sh              # every stage for a few steps (CI, minutes)
+#   BASE=shipped scripts/motion_bench.sh         # the variants on the shipped reconstruction
+#
+# BASE=backbone (default) trains a stage-1 backbone on the suite at 112x168 and every variant
+# from it. BASE=shipped skips stage 1: every variant starts from the shipped model
+# (models/envision4d-synth-tiny.safetensors, 56x84, its size) with its motion head and
+# temporal blocks back at their fresh init (`init_fresh`), so all variants learn motion from
+# scratch on one trained reconstruction (docs/RESULTS.md, "Motion", says why both exist);
+# its data and runs go to data/motion-56x84 and runs/motion-shipped.
 #
 # 1. data: the motion suite (one preset per motion type, docs/DATA.md) at the benchmark's
 #    resolution; training clips (seeds 100-104) and held-out clips (seeds 2100-2104), never
@@ -21,7 +29,13 @@
 set -euo pipefail
 BIN=${ENVISION4D:-${CARGO_TARGET_DIR:-target}/release/envision4d}
 ROOT=${MOTION_ROOT:-.}
-SIZE=${SIZE:-112x168}
+BASE=${BASE:-backbone}
+SHIPPED=${SHIPPED:-$(cd "$(dirname "$0")/.." && pwd)/models/envision4d-synth-tiny.safetensors}
+case "$BASE" in
+  backbone) SIZE=${SIZE:-112x168} DATA="$ROOT/data" RUNS="$ROOT/runs/motion" ;;
+  shipped) SIZE=${SIZE:-56x84} DATA="$ROOT/data/motion-56x84" RUNS="$ROOT/runs/motion-shipped" ;;
+  *) echo "BASE must be backbone or shipped, not '$BASE'" >&2; exit 2 ;;
+esac
 SEEDS=${SEEDS:-"0 1 2"}
 VARIANTS=${VARIANTS:-"cml motion-off linear-velocity no-temporal post-layer"}
 PRESETS=${PRESETS:-"motion-constant motion-accelerating motion-turning motion-crossing motion-stop-and-go"}
@@ -36,16 +50,20 @@ if [ -n "${SMOKE:-}" ]; then
 else
   STOP=()
 fi
-DATA="$ROOT/data"
-RUNS="$ROOT/runs/motion"
 mkdir -p "$DATA" "$RUNS"
 
-# A config of configs/motion with the paths of this run (and the smoke's size).
+# A config of configs/motion with the paths of this run (and the smoke's size); on the
+# shipped base, initialised from the shipped model with fresh motion.
 config() {
   local name=$1 out=$2
   local h=${SIZE%x*} w=${SIZE#*x}
+  local init="$RUNS/backbone/model.safetensors" fresh=""
+  if [ "$BASE" = shipped ]; then
+    init=$SHIPPED
+    fresh='init_fresh = ["motion_head", "time_blocks"]'
+  fi
   sed -e "s#^root = .*#root = \"$DATA/motion-train\"#" \
-      -e "s#^init_checkpoint = .*#init_checkpoint = \"$RUNS/backbone/model.safetensors\"#" \
+      -e "s#^init_checkpoint = .*#init_checkpoint = \"$init\"\n$fresh#" \
       -e "s#^image_size = .*#image_size = [$h, $w]#" \
       -e "s#^out_dir = .*#out_dir = \"$RUNS/$name\"#" \
       "$CONFIGS/$name.toml" > "$out"
@@ -89,9 +107,11 @@ if [ ! -d "$DATA/motion-train" ]; then
   mv "$DATA/motion-train.tmp" "$DATA/motion-train"
 fi
 
-echo "== stage 1: backbone"
-config backbone "$RUNS/backbone.toml"
-train "$RUNS/backbone.toml" backbone 0
+if [ "$BASE" = backbone ]; then
+  echo "== stage 1: backbone"
+  config backbone "$RUNS/backbone.toml"
+  train "$RUNS/backbone.toml" backbone 0
+fi
 
 for v in $VARIANTS; do
   config "$v" "$RUNS/$v.toml"
@@ -115,3 +135,11 @@ TABLE_ROWS=$VARIANTS
 case " $VARIANTS " in *" cml "*) TABLE_ROWS="$VARIANTS cml-zeroed cml-oracle" ;; esac
 python3 "$(dirname "$0")/motion_table.py" "$RUNS" "$TABLE_ROWS" "$SEEDS" "$PRESETS" \
   | tee "$RUNS/motion-table.md"
+# Where the future-frame error goes (cameras, exact motion, the model's motion; EVAL.md's
+# oracle renders), per variant and motion type, first seed.
+first=${SEEDS%% *}
+args=()
+for v in $VARIANTS; do
+  for p in $PRESETS; do args+=("$v-s$first/$p=$RUNS/$v-s$first/eval-$p"); done
+done
+python3 "$(dirname "$0")/motion_headroom.py" "${args[@]}" | tee "$RUNS/motion-headroom.md"
