@@ -19,7 +19,17 @@ const OTHER_SEED: &str = "6";
 /// The shipped model, relative to the repository root.
 const SHIPPED_MODEL: &str = "models/envision4d-synth-tiny.safetensors";
 /// What metrics.json must score, in its order.
-const METHODS: [&str; 4] = ["model", "copy_last", "static_cv", "no_motion"];
+/// The protocol's methods; a synthetic clip has motion truth, so the oracle renders too.
+const METHODS: [&str; 8] = [
+    "model",
+    "copy_last",
+    "static_cv",
+    "no_motion",
+    "oracle_motion",
+    "true_cameras_no_motion",
+    "true_cameras",
+    "true_cameras_oracle_motion",
+];
 /// Heading before the `  label: path` lines of stdout.
 const WROTE: &str = "wrote:";
 
