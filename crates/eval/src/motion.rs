@@ -89,7 +89,8 @@ fn dvec(v: Vec3) -> DVec3 {
     DVec3::new(v.x, v.y, v.z)
 }
 
-fn read3(s: &[f32], k: usize) -> DVec3 {
+/// Point `k` of a flat `[.., 3]` f32 buffer.
+pub(crate) fn read3(s: &[f32], k: usize) -> DVec3 {
     DVec3::new(s[3 * k] as f64, s[3 * k + 1] as f64, s[3 * k + 2] as f64)
 }
 

@@ -21,10 +21,15 @@ use envision4d_model::scene::Scene;
 pub(crate) struct MotionTruthOut {
     pub score: Option<MotionScore>,
     pub maps: Option<PairMaps>,
+    pub oracle: Option<OracleInputs>,
+}
+
+/// What the oracle renders need from the truth, in the model's frame and unit.
+pub(crate) struct OracleInputs {
     /// `[T_c, N−1, G, 3]` exact displacements ([`oracle_motions`]).
-    pub oracle: Option<Vec<f32>>,
-    /// The true world-to-camera of all `N` frames in the model's frame ([`true_cameras`]).
-    pub cameras: Option<Vec<Mat4>>,
+    pub motions: Vec<f32>,
+    /// The true world-to-camera of all `N` frames ([`true_cameras`]).
+    pub cameras: Vec<Mat4>,
 }
 
 /// The predicted displacements against the clip's exact scene flow, the per-pixel maps when
@@ -79,8 +84,10 @@ pub(crate) fn motion_truth_score(
     MotionTruthOut {
         score: Some(score_aligned(&aligned, truth.masks)),
         maps: opts.motion_maps.then(|| pair_maps(&aligned)),
-        oracle: Some(oracle_motions(&aligned)),
-        cameras: Some(true_cameras(&aligned)),
+        oracle: Some(OracleInputs {
+            motions: oracle_motions(&aligned),
+            cameras: true_cameras(&aligned),
+        }),
     }
 }
 
@@ -121,12 +128,7 @@ pub(crate) fn true_cameras(a: &Aligned) -> Vec<Mat4> {
             let rq = glam::DMat3::from_mat4(q);
             let t = rq * e0.w_axis.truncate() + q.w_axis.truncate() / a.scale;
             let r = rq * glam::DMat3::from_mat4(e0);
-            Mat4::from_glam(glam::DMat4::from_cols(
-                r.x_axis.extend(0.0),
-                r.y_axis.extend(0.0),
-                r.z_axis.extend(0.0),
-                t.extend(1.0),
-            ))
+            Mat4::from_glam(glam::DMat4::from_mat3_translation(r, t))
         })
         .collect()
 }
@@ -146,7 +148,7 @@ pub(crate) struct OracleRender {
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn oracle_renders(
     scene: &Scene,
-    truth: &MotionTruthOut,
+    oracle: OracleInputs,
     clip: &HostClip,
     extr: &Tensor<4>,
     intr: &Tensor<4>,
@@ -154,14 +156,13 @@ pub(crate) fn oracle_renders(
     future: &[usize],
     opts: &EvalOptions,
 ) -> Result<Vec<OracleRender>> {
-    let (Some(oracle), Some(cameras)) = (&truth.oracle, &truth.cameras) else {
-        return Ok(Vec::new());
-    };
+    let OracleInputs { motions, cameras } = oracle;
+    let cameras = &cameras;
     let size = [clip.height, clip.width];
     let device = extr.device();
     let mut exact = scene.adapted.clone();
     let [_, tc, k, g, _] = exact.motions.dims();
-    let data = TensorData::new(oracle.clone(), [1, tc, k, g, 3]);
+    let data = TensorData::new(motions, [1, tc, k, g, 3]);
     exact.motions = Tensor::from_data(data, &device);
     let still = scene.without_motion().adapted;
     let true_extr = extrinsics_tensor(cameras, &device);

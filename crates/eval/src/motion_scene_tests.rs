@@ -2,7 +2,7 @@
 //! world nor metric.
 
 use super::*;
-use crate::motion::{MotionTruth, PredictedMotion};
+use crate::motion::{read3, MotionTruth, PredictedMotion};
 use envision4d_data::{FrameMotionTruth, ObjectPose, Vec3};
 use glam::{DMat3, DMat4, DVec3};
 
@@ -94,14 +94,8 @@ fn oracle_motion_and_true_cameras_reproduce_the_true_future_view() {
             for k in 0..3 {
                 let moved_true = dv(fi.points[k].unwrap()) + dv(flow[k].unwrap());
                 let want = wj.transform_point3(moved_true) / s;
-                let slot =
-                    ((i * (n - 1) + envision4d_model::motion::target_slot(i, j)) * 3 + k) * 3;
-                let o = DVec3::new(
-                    oracle[slot] as f64,
-                    oracle[slot + 1] as f64,
-                    oracle[slot + 2] as f64,
-                );
-                let m = read(&means, i * 3 + k) + o;
+                let slot = (i * (n - 1) + envision4d_model::motion::target_slot(i, j)) * 3 + k;
+                let m = read3(&means, i * 3 + k) + read3(&oracle, slot);
                 let got = cams[j].to_glam().transform_point3(m);
                 assert!(
                     (got - want).length() < 1e-5,
@@ -110,8 +104,4 @@ fn oracle_motion_and_true_cameras_reproduce_the_true_future_view() {
             }
         }
     }
-}
-
-fn read(s: &[f32], k: usize) -> DVec3 {
-    DVec3::new(s[3 * k] as f64, s[3 * k + 1] as f64, s[3 * k + 2] as f64)
 }

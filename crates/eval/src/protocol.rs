@@ -118,18 +118,11 @@ pub fn evaluate_clip(
             &intr,
             encoder_s,
         )?);
-        let oracles = oracle_renders(
-            &scene,
-            &truth,
-            clip,
-            &extr,
-            &intr,
-            &pred_poses,
-            &future,
-            opts,
-        )?;
-        for o in oracles {
-            methods.push(scorer.score(o.method, &o.images, &o.poses, encoder_s + o.secs)?);
+        if let Some(oracle) = truth.oracle {
+            let f = &future;
+            for o in oracle_renders(&scene, oracle, clip, &extr, &intr, &pred_poses, f, opts)? {
+                methods.push(scorer.score(o.method, &o.images, &o.poses, encoder_s + o.secs)?);
+            }
         }
         (motion, motion_maps) = (truth.score, truth.maps);
     }
