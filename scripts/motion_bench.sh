@@ -25,7 +25,11 @@
 #    paired difference to CML per held-out clip with 95% intervals.
 #
 # Finished runs and evaluations are kept: rerunning the script continues where it stopped
-# (an interrupted training resumes from its last checkpoint).
+# (an interrupted training resumes from its last checkpoint; a run whose evaluations are all
+# there is not trained again). KEEP=dir also copies every finished evaluation's metrics.json
+# to dir/<run>/eval-<preset>/ and reads them back from there first, so a benchmark longer
+# than one machine's life continues on the next (the Motion tables of docs/RESULTS.md are
+# rebuilt from docs/results/motion-shipped this way).
 set -euo pipefail
 BIN=${ENVISION4D:-${CARGO_TARGET_DIR:-target}/release/envision4d}
 ROOT=${MOTION_ROOT:-.}
@@ -51,6 +55,16 @@ else
   STOP=()
 fi
 mkdir -p "$DATA" "$RUNS"
+KEEP=${KEEP:-}
+if [ -n "$KEEP" ] && [ -d "$KEEP" ]; then
+  # Evaluations finished elsewhere count as finished here.
+  (cd "$KEEP" && find . -path '*/eval-*/metrics.json') | while read -r f; do
+    if [ ! -f "$RUNS/$f" ]; then
+      mkdir -p "$(dirname "$RUNS/$f")"
+      cp "$KEEP/$f" "$RUNS/$f"
+    fi
+  done
+fi
 
 # A config of configs/motion with the paths of this run (and the smoke's size); on the
 # shipped base, initialised from the shipped model with fresh motion.
@@ -67,6 +81,14 @@ config() {
       -e "s#^image_size = .*#image_size = [$h, $w]#" \
       -e "s#^out_dir = .*#out_dir = \"$RUNS/$name\"#" \
       "$CONFIGS/$name.toml" > "$out"
+}
+
+# True when every preset's evaluation of a run is there (then its training is not needed).
+evaluated() {
+  local p
+  for p in $PRESETS; do
+    [ -f "$RUNS/$1/eval-$p/metrics.json" ] || return 1
+  done
 }
 
 # Trains one config into runs/motion/<run> unless it finished; resumes a started run.
@@ -117,12 +139,19 @@ for v in $VARIANTS; do
   config "$v" "$RUNS/$v.toml"
   for s in $SEEDS; do
     echo "== stage 2: $v, seed $s"
-    train "$RUNS/$v.toml" "$v-s$s" "$s"
+    if [ -n "${SMOKE:-}" ] || ! evaluated "$v-s$s"; then
+      train "$RUNS/$v.toml" "$v-s$s" "$s"
+    fi
     for p in $PRESETS; do
       out="$RUNS/$v-s$s/eval-$p"
       if [ ! -f "$out/metrics.json" ] || [ -n "${SMOKE:-}" ]; then
         "$BIN" eval --checkpoint "$RUNS/$v-s$s/model.safetensors" --data "$DATA/motion-heldout/$p" \
           --out "$out" > "$RUNS/$v-s$s/eval-$p.txt"
+      fi
+      if [ -n "$KEEP" ] && [ -z "${SMOKE:-}" ] && [ ! -f "$KEEP/$v-s$s/eval-$p/metrics.json" ]; then
+        mkdir -p "$KEEP/$v-s$s/eval-$p"
+        cp "$out/metrics.json" "$KEEP/$v-s$s/eval-$p/metrics.json.tmp"
+        mv "$KEEP/$v-s$s/eval-$p/metrics.json.tmp" "$KEEP/$v-s$s/eval-$p/metrics.json"
       fi
     done
   done

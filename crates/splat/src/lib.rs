@@ -18,6 +18,7 @@ pub mod cpu;
 pub mod kernels;
 pub mod math;
 pub mod ply;
+pub mod primitives;
 pub mod real;
 
 pub use camera::{Camera, CameraError};

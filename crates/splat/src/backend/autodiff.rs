@@ -134,4 +134,17 @@ impl<B: SplatOps, C: CheckpointStrategy> SplatOps for Autodiff<B, C> {
             ks: lift(g.ks),
         }
     }
+
+    /// Integer ops carry no gradient: the inner backend's.
+    fn splat_sort_pairs(
+        keys: IntTensor<Self>,
+        values: IntTensor<Self>,
+        bits: u32,
+    ) -> (IntTensor<Self>, IntTensor<Self>) {
+        B::splat_sort_pairs(keys, values, bits)
+    }
+
+    fn splat_exclusive_scan(values: IntTensor<Self>) -> IntTensor<Self> {
+        B::splat_exclusive_scan(values)
+    }
 }

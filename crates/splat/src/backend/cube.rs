@@ -2,12 +2,15 @@
 //! kernels of [`crate::kernels`]; other float types (f64 oracle runs, half precision) take the
 //! host path, which is exact but slow.
 
-use super::{host, SplatGrads, SplatOps};
+use super::{host, host_sort, SplatGrads, SplatOps};
 use crate::config::RasterConfig;
 use crate::kernels::launch::{self, Inputs};
+use crate::kernels::sort;
 use burn::backend::tensor::{FloatTensor, IntTensor};
 use burn::backend::TensorMetadata;
 use burn::tensor::DType;
+use burn_cubecl::kernel::into_contiguous;
+use burn_cubecl::tensor::CubeTensor;
 use burn_cubecl::CubeBackend;
 
 impl SplatOps for CubeBackend {
@@ -55,4 +58,36 @@ impl SplatOps for CubeBackend {
             &config,
         )
     }
+
+    fn splat_sort_pairs(
+        keys: IntTensor<Self>,
+        values: IntTensor<Self>,
+        bits: u32,
+    ) -> (IntTensor<Self>, IntTensor<Self>) {
+        if !is_32bit(&keys) || !is_32bit(&values) {
+            return host_sort::sort_pairs::<Self>(keys, values, bits);
+        }
+        let n = keys.shape().num_elements();
+        let (kd, vd) = (keys.dtype(), values.dtype());
+        let (k, v) = sort::sort_pairs(&words(keys), &words(values), n, bits);
+        (sort::retype(k, kd), sort::retype(v, vd))
+    }
+
+    fn splat_exclusive_scan(values: IntTensor<Self>) -> IntTensor<Self> {
+        if !is_32bit(&values) {
+            return host_sort::exclusive_scan::<Self>(values);
+        }
+        let n = values.shape().num_elements();
+        let dtype = values.dtype();
+        sort::retype(sort::exclusive_scan(&words(values), n, n + 1), dtype)
+    }
+}
+
+fn is_32bit(t: &IntTensor<CubeBackend>) -> bool {
+    matches!(t.dtype(), DType::I32 | DType::U32)
+}
+
+/// A contiguous u32 view of a 32-bit integer tensor.
+fn words(t: IntTensor<CubeBackend>) -> CubeTensor {
+    sort::retype(into_contiguous(t), DType::U32)
 }

@@ -10,6 +10,7 @@
 mod autodiff;
 mod cube;
 mod host;
+mod host_sort;
 
 use crate::config::RasterConfig;
 use burn::backend::tensor::{FloatTensor, IntTensor};
@@ -82,6 +83,23 @@ pub trait SplatOps: Backend {
             height,
             &config,
         )
+    }
+
+    /// Stable sort of 1-D `(keys, values)` of equal length by the keys' low
+    /// [`crate::kernels::sort::sorted_bits`]`(bits)` bits, keys read as 32-bit patterns.
+    /// The rasterizer's depth and tile sorts; on CubeCL backends a device radix sort.
+    fn splat_sort_pairs(
+        keys: IntTensor<Self>,
+        values: IntTensor<Self>,
+        bits: u32,
+    ) -> (IntTensor<Self>, IntTensor<Self>) {
+        host_sort::sort_pairs::<Self>(keys, values, bits)
+    }
+
+    /// Exclusive prefix sum of a 1-D tensor with its total appended (`n` → `n + 1`
+    /// elements), summed as u32. On CubeCL backends a device scan.
+    fn splat_exclusive_scan(values: IntTensor<Self>) -> IntTensor<Self> {
+        host_sort::exclusive_scan::<Self>(values)
     }
 }
 

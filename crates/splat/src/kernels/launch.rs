@@ -5,17 +5,18 @@
 //! intersection): CubeCL does not support zero-size dispatches, and the zero-filled outputs
 //! are already the right answer.
 
+use super::binning::{bin_on_device, DeviceBins};
 use super::math::CAM_LANES;
 use super::project_backward::{project_backward, CAM_GRAD_LANES};
 use super::project_forward::{project_forward, META_LANES, RECORD_LANES};
 use super::rasterize_backward::{rasterize_backward, CasAdd, NativeAdd};
 use super::rasterize_forward::{rasterize_forward, OUT_CHANNELS, TILE};
+use super::sort::{empty_u32, exclusive_scan, retype};
+use super::view_meta::{radii_and_flags, view_counts};
 use crate::backend::SplatGrads;
 use crate::camera::{Camera, CameraGrad};
 use crate::config::RasterConfig;
-use crate::cpu::bins::{bin_tiles, TileBins};
-use crate::cpu::project::{Projected, TileRect};
-use crate::math::{Mat3, Sym2};
+use crate::math::Mat3;
 use burn::backend::ops::{FloatTensorOps, IntTensorOps};
 use burn::backend::tensor::{FloatTensor, IntTensor};
 use burn::backend::TensorMetadata;
@@ -64,15 +65,13 @@ fn upload_f32(like: &CubeTensor, v: Vec<f32>) -> CubeTensor {
     CubeBackend::float_from_data(TensorData::new(v, [len]), &like.device)
 }
 
-fn upload_u32(like: &CubeTensor, v: &[u32]) -> CubeTensor {
-    check_binding(like, "tile list", v.len());
-    let bytes: Vec<u8> = v.iter().flat_map(|x| x.to_le_bytes()).collect();
-    let handle = like.client.create_from_slice(&bytes);
-    CubeTensor::new_contiguous(
+/// A zero-filled u32 buffer of `len` elements.
+fn zeros_u32(like: &CubeTensor, len: usize) -> CubeTensor {
+    check_binding(like, "output", len);
+    zeros_client(
         like.client.clone(),
         like.device.clone(),
-        Shape::new([v.len()]),
-        handle,
+        Shape::new([len]),
         DType::U32,
     )
 }
@@ -152,13 +151,11 @@ struct ViewBins {
     cam_rec: CubeTensor,
     records: CubeTensor,
     meta: CubeTensor,
-    meta_host: Vec<f32>,
-    bins: TileBins,
-    /// Uploaded `(tile_start, items)`; `None` when the view has no intersection.
-    lists: Option<(CubeTensor, CubeTensor)>,
+    /// The tile lists; `None` when no Gaussian touches a tile.
+    bins: Option<DeviceBins>,
 }
 
-/// Runs `project_forward` for view `v` and bins the result on the host. Requires `n > 0`.
+/// Runs `project_forward` for view `v` and bins the result on the device. Requires `n > 0`.
 fn project_and_bin(inp: &Inputs, v: usize, cfg: &RasterConfig) -> ViewBins {
     let cam = &inp.cams[v];
     let client = inp.means.client.clone();
@@ -198,52 +195,43 @@ fn project_and_bin(inp: &Inputs, v: usize, cfg: &RasterConfig) -> ViewBins {
         cfg.eps2d as f32,
         cfg.alpha_min as f32,
     );
-    let rec_host = read_f32(records.clone());
-    let meta_host = read_f32(meta.clone());
-    let projected: Vec<Option<Projected<f32>>> = (0..inp.n)
-        .map(|i| {
-            let m = &meta_host[i * META_LANES..(i + 1) * META_LANES];
-            let tiles = TileRect {
-                x0: m[0] as u32,
-                y0: m[1] as u32,
-                x1: m[2] as u32,
-                y1: m[3] as u32,
-            };
-            if tiles.x1 <= tiles.x0 || tiles.y1 <= tiles.y0 {
-                return None;
-            }
-            let r = &rec_host[i * RECORD_LANES..(i + 1) * RECORD_LANES];
-            Some(Projected {
-                mean2d: [r[0], r[1]],
-                conic: Sym2 {
-                    a: r[2],
-                    b: r[3],
-                    c: r[4],
-                },
-                depth: r[9],
-                opacity: r[5],
-                color: [r[6], r[7], r[8]],
-                radius: [m[4] as i32, m[5] as i32],
-                tiles,
-            })
-        })
-        .collect();
-    let bins = bin_tiles(&projected, cam.tiles_x(), cam.tiles_y());
-    let lists = (!bins.items.is_empty()).then(|| {
-        let starts: Vec<u32> = bins.tile_start.iter().map(|&s| s as u32).collect();
-        (
-            upload_u32(&inp.means, &starts),
-            upload_u32(&inp.means, &bins.items),
-        )
-    });
+    let bins = bin_on_device(&records, &meta, inp.n, cam.tiles_x(), cam.tiles_y());
     ViewBins {
         cam_rec,
         records,
         meta,
-        meta_host,
         bins,
-        lists,
     }
+}
+
+/// Writes view `v`'s radii and (visible, intersections) into the forward's meta buffers.
+fn write_view_meta(inp: &Inputs, v: usize, vb: &ViewBins, radii: &CubeTensor, counts: &CubeTensor) {
+    let client = &inp.means.client;
+    let n = inp.n;
+    let flags = empty_u32(&inp.means, n);
+    let dim = CubeDim::new(client, n);
+    radii_and_flags::launch(
+        client,
+        calculate_cube_count_elemwise(client, n, dim),
+        dim,
+        vb.meta.clone().into_tensor_arg(),
+        radii.clone().into_tensor_arg(),
+        flags.clone().into_tensor_arg(),
+        n as u32,
+        v as u32,
+    );
+    let visible = exclusive_scan(&flags, n, n + 1);
+    let intersections = vb.bins.as_ref().map_or(0, |b| b.intersections);
+    view_counts::launch(
+        client,
+        CubeCount::new_single(),
+        CubeDim::new_1d(1),
+        visible.into_tensor_arg(),
+        counts.clone().into_tensor_arg(),
+        n as u32,
+        v as u32,
+        u32::try_from(intersections).expect("splat: tile intersections exceed u32"),
+    );
 }
 
 fn tile_grid(inp: &Inputs) -> (CubeCount, CubeDim) {
@@ -268,18 +256,14 @@ pub fn forward(
     let (v_count, n) = (inp.cams.len(), inp.n);
     let (w, h) = (inp.width as usize, inp.height as usize);
     let image = zeros(&inp.means, v_count * h * w * OUT_CHANNELS);
-    let mut radii = vec![0i32; v_count * n * 2];
-    let mut counts = vec![0i64; v_count * 2];
+    // Zero-filled, so views and Gaussians with nothing to say need no launch.
+    let radii = zeros_u32(&inp.means, v_count * n * 2);
+    let counts = zeros_u32(&inp.means, v_count * 2);
     if n > 0 {
         for v in 0..v_count {
             let vb = project_and_bin(inp, v, cfg);
-            for i in 0..n {
-                radii[(v * n + i) * 2] = vb.meta_host[i * META_LANES + 4] as i32;
-                radii[(v * n + i) * 2 + 1] = vb.meta_host[i * META_LANES + 5] as i32;
-            }
-            counts[2 * v] = vb.bins.visible as i64;
-            counts[2 * v + 1] = vb.bins.intersections() as i64;
-            let Some((starts, items)) = vb.lists else {
+            write_view_meta(inp, v, &vb, &radii, &counts);
+            let Some(bins) = vb.bins else {
                 continue;
             };
             let (count, dim) = tile_grid(inp);
@@ -288,8 +272,8 @@ pub fn forward(
                 count,
                 dim,
                 vb.records.into_tensor_arg(),
-                starts.into_tensor_arg(),
-                items.into_tensor_arg(),
+                bins.tile_start.into_tensor_arg(),
+                bins.items.into_tensor_arg(),
                 image.clone().into_tensor_arg(),
                 inp.width,
                 inp.height,
@@ -301,10 +285,12 @@ pub fn forward(
             );
         }
     }
-    let device = inp.means.device.clone();
     let image = CubeBackend::float_reshape(image, Shape::new([v_count, h, w, OUT_CHANNELS]));
-    let radii = CubeBackend::int_from_data(TensorData::new(radii, [v_count, n, 2]), &device);
-    let counts = CubeBackend::int_from_data(TensorData::new(counts, [v_count, 2]), &device);
+    // The counters are small non-negative integers: their u32 bits read as i32.
+    let as_int =
+        |t: CubeTensor, shape: Shape| CubeBackend::int_reshape(retype(t, DType::I32), shape);
+    let radii = as_int(radii, Shape::new([v_count, n, 2]));
+    let counts = as_int(counts, Shape::new([v_count, 2]));
     (image, radii, counts)
 }
 
@@ -333,7 +319,7 @@ pub fn backward(
         let mut cg = CameraGrad::<f32>::zero();
         if n > 0 {
             let vb = project_and_bin(inp, v, cfg);
-            if let Some((starts, items)) = vb.lists {
+            if let Some(bins) = vb.bins {
                 let v_proj = zeros(&inp.means, n * RECORD_LANES);
                 let (count, dim) = tile_grid(inp);
                 let launch = if native {
@@ -346,8 +332,8 @@ pub fn backward(
                     count,
                     dim,
                     vb.records.into_tensor_arg(),
-                    starts.into_tensor_arg(),
-                    items.into_tensor_arg(),
+                    bins.tile_start.into_tensor_arg(),
+                    bins.items.into_tensor_arg(),
                     grad_image.clone().into_tensor_arg(),
                     v_proj.clone().into_tensor_arg(),
                     inp.width,

@@ -3,6 +3,7 @@
 
 mod burn_api;
 mod common;
+mod device_sort;
 mod edge;
 mod gradients;
 mod oracle;

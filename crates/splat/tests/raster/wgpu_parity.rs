@@ -362,3 +362,29 @@ fn wgpu_oversized_buffer_fails_loudly() {
         "unclear message: {msg}"
     );
 }
+
+/// Guards the device binning's order: 2 500 Gaussians (three sort blocks) at one shared depth
+/// over 104 tiles, so every overlap is a depth tie that only the stable (depth, index) order
+/// of the radix sorts resolves as the CPU does.
+#[test]
+fn wgpu_equal_depths_over_many_tiles_match_cpu() {
+    let (w, h) = (200, 120);
+    let mut scene = random_scene(
+        2_500,
+        21,
+        SceneSpec {
+            xy: 2.0,
+            ..Default::default()
+        },
+    );
+    for z in scene.means.iter_mut().skip(2).step_by(3) {
+        *z = 3.0;
+    }
+    check_parity(
+        &scene,
+        &two_views(w, h)[..1],
+        w,
+        h,
+        &RasterConfig::default(),
+    );
+}
