@@ -1,12 +1,30 @@
-//! Front-to-back compositing of one view: one cube per 16x16 tile, one thread per pixel
+//! Front-to-back compositing of one view: one cube per 16x16 tile, one unit per pixel
 //! (`raster_tile_forward` / `composite_pixel` in `cpu/raster.rs`).
 //!
-//! Each thread walks its tile's CSR list `items[tile_start[t] .. tile_start[t+1]]` (Gaussian
-//! indices, front to back) and reads the packed records directly from global memory.
-//! Shared-memory batching of records is a later optimisation.
+//! The cube walks its tile's CSR list `items[tile_start[t] .. tile_start[t+1]]` (Gaussian
+//! indices, front to back) in batches of `BATCH` records: each unit copies one record into
+//! shared memory, with its early-reject distance, so a record is read from global memory
+//! once per tile instead of once per pixel. A unit whose pixel has reached the transmittance
+//! stop counts itself done; when all are, the tile stops (per-tile early exit). Units
+//! outside the image (partial edge tiles) load their share and write nothing.
 
 use super::project_forward::RECORD_LANES;
 use cubecl::prelude::*;
+
+/// Records per shared-memory batch: one per unit of the cube.
+pub const BATCH: u32 = TILE * TILE;
+/// Lanes of a batched record: the packed record, then its early-reject distance.
+pub const SHARED_LANES: usize = RECORD_LANES + 1;
+/// The early-reject distance's lane.
+const CUT_LANE: usize = RECORD_LANES;
+/// Shared floats of one batch (11 KiB: within WebGPU's 16 KiB minimum).
+pub const BATCH_SHARED: usize = BATCH as usize * SHARED_LANES;
+/// Safety margin of the early reject ([`crate::cpu::raster::SIGMA_CUT_MARGIN`]): at
+/// `sigma > ln(opacity / alpha_min) + margin` alpha is certainly below `alpha_min`, so the
+/// `exp` is skipped without changing any decision.
+const SIGMA_CUT_MARGIN: f32 = crate::cpu::raster::SIGMA_CUT_MARGIN as f32;
+/// An early-reject distance that rejects nothing early (a finite literal: WGSL has no inf).
+const NO_CUT: f32 = f32::MAX;
 
 /// Tile side in pixels ([`crate::config::TILE_SIZE`]); the cube is TILE x TILE threads.
 pub const TILE: u32 = crate::config::TILE_SIZE;
@@ -24,8 +42,41 @@ pub struct Eval {
     pub skip: bool,
 }
 
-/// Evaluates record `rec` at pixel centre `(px, py)`; forward and backward both call this, so
-/// their skip decisions cannot diverge.
+/// Evaluates a splat (offset `(dx, dy)` from the pixel centre, conic, opacity) with
+/// early-reject distance `cut`; forward and backward both come here, so their skip
+/// decisions cannot diverge. Past `cut` the splat is skipped without its `exp`.
+#[cube]
+#[allow(clippy::too_many_arguments)]
+pub fn eval_values(
+    dx: f32,
+    dy: f32,
+    q00: f32,
+    q01: f32,
+    q11: f32,
+    opacity: f32,
+    cut: f32,
+    alpha_min: f32,
+    alpha_max: f32,
+) -> Eval {
+    let sigma = 0.5f32 * (q00 * dx * dx + q11 * dy * dy) + q01 * dx * dy;
+    let mut vis = 0.0f32;
+    let mut alpha = 0.0f32;
+    let mut skip = true;
+    if sigma >= 0.0f32 && sigma <= cut {
+        vis = f32::exp(0.0f32 - sigma);
+        alpha = alpha_max.min(opacity * vis);
+        skip = alpha < alpha_min;
+    }
+    Eval {
+        dx,
+        dy,
+        vis,
+        alpha,
+        skip,
+    }
+}
+
+/// Evaluates record `rec` of `records` at pixel centre `(px, py)` (no early reject).
 #[cube]
 pub fn eval_splat(
     records: &Tensor<f32>,
@@ -35,19 +86,67 @@ pub fn eval_splat(
     alpha_min: f32,
     alpha_max: f32,
 ) -> Eval {
-    let dx = records[rec] - px;
-    let dy = records[rec + 1] - py;
-    let sigma = 0.5f32 * (records[rec + 2] * dx * dx + records[rec + 4] * dy * dy)
-        + records[rec + 3] * dx * dy;
-    let vis = f32::exp(0.0f32 - sigma);
-    let alpha = alpha_max.min(records[rec + 5] * vis);
-    Eval {
-        dx,
-        dy,
-        vis,
-        alpha,
-        skip: sigma < 0.0f32 || alpha < alpha_min,
+    eval_values(
+        records[rec] - px,
+        records[rec + 1] - py,
+        records[rec + 2],
+        records[rec + 3],
+        records[rec + 4],
+        records[rec + 5],
+        NO_CUT,
+        alpha_min,
+        alpha_max,
+    )
+}
+
+/// Copies the records of items `[first, end)` into the batch (unit `u` copies item
+/// `first + u`, with its early-reject distance) and their Gaussian indices into `ids`.
+#[cube]
+#[allow(clippy::too_many_arguments)]
+pub fn load_batch(
+    records: &Tensor<f32>,
+    items: &Tensor<u32>,
+    batch: &mut [f32],
+    ids: &mut [u32],
+    first: u32,
+    end: u32,
+    unit: usize,
+    alpha_min: f32,
+) {
+    let k = first + unit as u32;
+    if k < end {
+        let id = items[k as usize];
+        let rec = id as usize * RECORD_LANES;
+        let s = unit * SHARED_LANES;
+        for l in 0..RECORD_LANES {
+            batch[s + l] = records[rec + l];
+        }
+        batch[s + CUT_LANE] = f32::ln(records[rec + 5] / alpha_min) + SIGMA_CUT_MARGIN;
+        ids[unit] = id;
     }
+}
+
+/// Evaluates the batched record at `s` at pixel centre `(px, py)`, with its early reject.
+#[cube]
+pub fn eval_batched(
+    batch: &[f32],
+    s: usize,
+    px: f32,
+    py: f32,
+    alpha_min: f32,
+    alpha_max: f32,
+) -> Eval {
+    eval_values(
+        batch[s] - px,
+        batch[s + 1] - py,
+        batch[s + 2],
+        batch[s + 3],
+        batch[s + 4],
+        batch[s + 5],
+        batch[s + CUT_LANE],
+        alpha_min,
+        alpha_max,
+    )
 }
 
 #[cube(launch)]
@@ -67,42 +166,80 @@ pub fn rasterize_forward(
 ) {
     let x = CUBE_POS_X * TILE + UNIT_POS_X;
     let y = CUBE_POS_Y * TILE + UNIT_POS_Y;
-    // Partial tiles at the right/bottom edge: those threads have no pixel.
-    if x >= width || y >= height {
-        terminate!();
-    }
+    let unit = (UNIT_POS_Y * TILE + UNIT_POS_X) as usize;
+    let inside = x < width && y < height;
     let tile = (CUBE_POS_Y * tiles_x + CUBE_POS_X) as usize;
     let start = tile_start[tile];
     let end = tile_start[tile + 1];
     let px = f32::cast_from(x) + 0.5f32;
     let py = f32::cast_from(y) + 0.5f32;
 
+    let mut batch = Shared::<[f32]>::new_slice(BATCH_SHARED);
+    // The indices are the backward's (it adds into per-Gaussian lanes); loaded here too so
+    // both kernels share one loader.
+    let mut ids = Shared::<[u32]>::new_slice(BATCH as usize);
+    let finished = Shared::<[Atomic<u32>]>::new_slice(1usize);
+    if unit == 0 {
+        finished[0].store(0u32);
+    }
+    sync_cube();
+    // Units without a pixel are done from the start.
+    let mut done = !inside;
+    if done {
+        finished[0].fetch_add(1u32);
+    }
     let mut t = 1.0f32;
     let mut acc_r = 0.0f32;
     let mut acc_g = 0.0f32;
     let mut acc_b = 0.0f32;
     let mut acc_d = 0.0f32;
-    for k in start..end {
-        let rec = items[k as usize] as usize * RECORD_LANES;
-        let e = eval_splat(records, rec, px, py, alpha_min, alpha_max);
-        if !e.skip {
-            let next_t = t * (1.0f32 - e.alpha);
-            // Exclusive stop: the splat that would drive T to the threshold is not composited.
-            if next_t <= t_min {
-                break;
+    let mut base = start;
+    while base < end {
+        load_batch(
+            records, items, &mut batch, &mut ids, base, end, unit, alpha_min,
+        );
+        sync_cube();
+        if !done {
+            let mut count = end - base;
+            if count > BATCH {
+                count = BATCH;
             }
-            let fac = e.alpha * t;
-            acc_r += records[rec + 6] * fac;
-            acc_g += records[rec + 7] * fac;
-            acc_b += records[rec + 8] * fac;
-            acc_d += records[rec + 9] * fac;
-            t = next_t;
+            for j in 0..count {
+                let s = j as usize * SHARED_LANES;
+                let e = eval_batched(&batch, s, px, py, alpha_min, alpha_max);
+                if !e.skip {
+                    let next_t = t * (1.0f32 - e.alpha);
+                    // Exclusive stop: the splat that would drive T to the threshold is not
+                    // composited.
+                    if next_t <= t_min {
+                        done = true;
+                        break;
+                    }
+                    let fac = e.alpha * t;
+                    acc_r += batch[s + 6] * fac;
+                    acc_g += batch[s + 7] * fac;
+                    acc_b += batch[s + 8] * fac;
+                    acc_d += batch[s + 9] * fac;
+                    t = next_t;
+                }
+            }
+            if done {
+                finished[0].fetch_add(1u32);
+            }
+        }
+        base += BATCH;
+        // The uniform load meets the whole cube first, so nobody still reads the batch the
+        // next iteration overwrites; and it tells every unit at once whether all are done.
+        if workgroup_uniform_load_atomic(&finished[0]) == BATCH {
+            break;
         }
     }
-    let o = view_offset as usize + ((y * width + x) as usize) * OUT_CHANNELS;
-    out[o] = acc_r;
-    out[o + 1] = acc_g;
-    out[o + 2] = acc_b;
-    out[o + 3] = acc_d;
-    out[o + 4] = 1.0f32 - t;
+    if inside {
+        let o = view_offset as usize + ((y * width + x) as usize) * OUT_CHANNELS;
+        out[o] = acc_r;
+        out[o + 1] = acc_g;
+        out[o + 2] = acc_b;
+        out[o + 3] = acc_d;
+        out[o + 4] = 1.0f32 - t;
+    }
 }

@@ -388,3 +388,28 @@ fn wgpu_equal_depths_over_many_tiles_match_cpu() {
         &RasterConfig::default(),
     );
 }
+
+/// Guards the shared-memory batches and the per-tile early exit: 700 large, nearly opaque
+/// Gaussians cover every pixel, so each tile lists them all (three batches) and every pixel
+/// stops within the first; the rest must be skipped, not composited.
+#[test]
+fn wgpu_opaque_stack_stops_like_cpu() {
+    let (w, h) = (48, 40);
+    let scene = random_scene(
+        700,
+        33,
+        SceneSpec {
+            xy: 0.3,
+            z: (2.0, 6.0),
+            scale: (0.8, 1.5),
+            opacity: (0.9, 0.99),
+        },
+    );
+    check_parity(
+        &scene,
+        &two_views(w, h)[..1],
+        w,
+        h,
+        &RasterConfig::default(),
+    );
+}
