@@ -2,9 +2,13 @@
 //! 100k and 362k Gaussians (two frames of per-pixel Gaussians, as Envision4D renders them).
 //!
 //! `cargo bench -p envision4d-splat --bench raster [-- --wgpu] [--quick] [--max-gaussians N]`
-//! Prints ms per view and Gaussian-tile pairs per second; results go to docs/PERFORMANCE.md.
+//! Prints ms per view and Gaussian-tile pairs per second, then the binning's building blocks
+//! alone (the stable sort of 32-bit keys and the exclusive scan, results read back); results
+//! go to docs/PERFORMANCE.md.
 
+use burn::tensor::{DType, Int, Tensor, TensorData};
 use burn::tensor::{Device, DeviceKind};
+use envision4d_splat::primitives::{exclusive_scan, sort_pairs};
 use envision4d_splat::testkit::{look_at, HostScene, SplitMix64};
 use envision4d_splat::{render, Cameras, Gaussians, RasterConfig};
 use std::time::{Duration, Instant};
@@ -133,6 +137,7 @@ fn main() {
         .map(|v| v.parse().expect("--max-gaussians takes a number"))
         .unwrap_or(usize::MAX);
     let full = street_scene(2, 7);
+    let sort_devices = devices.clone();
     let cfg = RasterConfig::default();
     println!(
         "machine: {} logical cores; image {W}x{H}; min of {reps} runs after 1 warm-up",
@@ -179,6 +184,33 @@ fn main() {
                 fb.as_secs_f64() * 1e3,
                 pairs / fwd.as_secs_f64(),
                 pairs / fb.as_secs_f64()
+            );
+        }
+    }
+    println!();
+    println!("| backend | elements | sort, 32-bit keys, ms | sort, 12-bit keys, ms | scan ms |");
+    println!("|---|---|---|---|---|");
+    for (name, device) in sort_devices {
+        for n in [100_000usize, 1_000_000] {
+            let mut rng = SplitMix64::new(n as u64);
+            let keys: Vec<i32> = (0..n).map(|_| rng.next_u64() as u32 as i32).collect();
+            let small: Vec<i32> = keys.iter().map(|k| k & 0xFFF).collect();
+            let ints = |v: &[i32]| {
+                Tensor::<1, Int>::from_data(TensorData::new(v.to_vec(), [n]), (&device, DType::I32))
+            };
+            let (k32, k12, vals) = (ints(&keys), ints(&small), ints(&small));
+            let sort = |k: &Tensor<1, Int>, bits| {
+                let (k, v) = sort_pairs(k.clone(), vals.clone(), bits).unwrap();
+                (k.into_data(), v.into_data())
+            };
+            let t32 = time(reps, || sort(&k32, 32));
+            let t12 = time(reps, || sort(&k12, 12));
+            let ts = time(reps, || exclusive_scan(k12.clone()).unwrap().into_data());
+            println!(
+                "| {name} | {n} | {:.1} | {:.1} | {:.1} |",
+                t32.as_secs_f64() * 1e3,
+                t12.as_secs_f64() * 1e3,
+                ts.as_secs_f64() * 1e3
             );
         }
     }

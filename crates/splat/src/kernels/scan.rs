@@ -1,6 +1,6 @@
 //! Exclusive prefix sum of u32 on the device, work-efficient: each cube scans `SCAN_BLOCK`
 //! elements (every unit sums `SCAN_ITEMS` serially, the cube scans those sums in shared
-//! memory) and writes its total; the totals are scanned the same way and added back
+//! memory, [`scan_blocks`]) and writes its total; the totals are scanned the same way and added back
 //! (`scan_add`). O(n) work and O(log n) launches in all, where Burn's cumsum does O(n²).
 //!
 //! Shared memory is met with `sync_cube`, so no unit may leave early: units past the end
@@ -17,6 +17,10 @@ pub const SCAN_ITEMS: u32 = 4;
 pub const SCAN_BLOCK: u32 = SCAN_THREADS * SCAN_ITEMS;
 /// `SCAN_THREADS` as the shared-memory length (a compile-time size).
 const SHARED_LEN: usize = SCAN_THREADS as usize;
+/// Units whose sums one unit scans serially.
+const GROUP: u32 = 16;
+/// Groups per cube.
+const GROUPS: u32 = SCAN_THREADS / GROUP;
 
 /// Scans block `CUBE_POS` of `input[..len_in]` (zero past it) into `output[..len_out]`, each
 /// block from 0, and writes the block's total to `block_sums`.
@@ -42,23 +46,35 @@ pub fn scan_blocks(
             own += input[i as usize];
         }
     }
-    // Hillis-Steele over the cube: read the partner, meet, write, meet.
+    // The cube's exclusive offsets in two serial levels (groups of `GROUP` units, then the
+    // groups): three barriers, where a parallel scan needs two per doubling step; barriers
+    // are what a CPU running the cube (lavapipe) pays for.
     let mut sums = Shared::<[u32]>::new_slice(SHARED_LEN);
+    let mut groups = Shared::<[u32]>::new_slice(GROUPS as usize);
     sums[t as usize] = own;
     sync_cube();
-    let mut offset = 1u32;
-    while offset < SCAN_THREADS {
-        let mut add = 0u32;
-        if t >= offset {
-            add = sums[(t - offset) as usize];
+    if t < GROUPS {
+        let mut running = 0u32;
+        for v in 0..GROUP {
+            let at = (t * GROUP + v) as usize;
+            let c = sums[at];
+            sums[at] = running;
+            running += c;
         }
-        sync_cube();
-        sums[t as usize] += add;
-        sync_cube();
-        offset *= 2;
+        groups[t as usize] = running;
     }
-    let inclusive = sums[t as usize];
-    let mut running = inclusive - own;
+    sync_cube();
+    if t == 0 {
+        let mut running = 0u32;
+        for g in 0..GROUPS {
+            let c = groups[g as usize];
+            groups[g as usize] = running;
+            running += c;
+        }
+        block_sums[block as usize] = running;
+    }
+    sync_cube();
+    let mut running = sums[t as usize] + groups[(t / GROUP) as usize];
     for k in 0..SCAN_ITEMS {
         let i = first + k;
         let mut x = 0u32;
@@ -69,9 +85,6 @@ pub fn scan_blocks(
             output[i as usize] = running;
         }
         running += x;
-    }
-    if t == SCAN_THREADS - 1 {
-        block_sums[block as usize] = inclusive;
     }
 }
 
