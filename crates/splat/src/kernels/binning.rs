@@ -29,6 +29,7 @@ pub fn tile_bits(num_tiles: u32) -> u32 {
 
 /// Reads element `i` of a u32 buffer (the one readback of the binning).
 fn read_u32_at(t: &CubeTensor, i: usize) -> u32 {
+    super::launch::count_readback();
     let one = CubeBackend::int_slice(t.clone(), &[Slice::from(i..i + 1)]);
     let data = read_sync(CubeBackend::int_into_data(one))
         .unwrap_or_else(|e| panic!("splat: device readback failed: {e:?}"));

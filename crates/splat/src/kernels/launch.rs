@@ -6,6 +6,7 @@
 //! are already the right answer.
 
 use super::binning::{bin_on_device, DeviceBins};
+use super::camera_grad::camera_grad_matrices;
 use super::math::CAM_LANES;
 use super::project_backward::{project_backward, CAM_GRAD_LANES};
 use super::project_forward::{project_forward, META_LANES, RECORD_LANES};
@@ -14,9 +15,8 @@ use super::rasterize_forward::{rasterize_forward, OUT_CHANNELS, TILE};
 use super::sort::{empty_u32, exclusive_scan, retype};
 use super::view_meta::{radii_and_flags, view_counts};
 use crate::backend::SplatGrads;
-use crate::camera::{Camera, CameraGrad};
+use crate::camera::Camera;
 use crate::config::RasterConfig;
-use crate::math::Mat3;
 use burn::backend::ops::{FloatTensorOps, IntTensorOps};
 use burn::backend::tensor::{FloatTensor, IntTensor};
 use burn::backend::TensorMetadata;
@@ -29,7 +29,26 @@ use cubecl::features::AtomicUsage;
 use cubecl::ir::{ElemType, FloatKind, Type};
 use cubecl::{calculate_cube_count_elemwise, CubeCount, CubeDim};
 
+thread_local! {
+    /// Device-to-host reads made by this thread's renders (see [`host_readbacks`]).
+    static READBACKS: std::cell::Cell<usize> = const { std::cell::Cell::new(0) };
+}
+
+/// How many times this thread's CubeCL renders have read the device back so far. A render
+/// call reads its cameras (two tiny tensors) once, and each view its intersection count
+/// (4 bytes) once per pass; nothing else comes back. Tests count with it; it is per thread
+/// so parallel tests do not disturb each other.
+pub fn host_readbacks() -> usize {
+    READBACKS.with(|c| c.get())
+}
+
+/// Counts one device-to-host read of this thread.
+pub(crate) fn count_readback() {
+    READBACKS.with(|c| c.set(c.get() + 1));
+}
+
 fn read_f32(t: CubeTensor) -> Vec<f32> {
+    count_readback();
     let data = read_sync(CubeBackend::float_into_data(t))
         .unwrap_or_else(|e| panic!("splat: device readback failed: {e:?}"));
     data.convert::<f32>()
@@ -312,11 +331,14 @@ pub fn backward(
     let grad_image = flat(grad_image);
     let [g_means, g_quats, g_scales, g_opac, g_colors] =
         [3, 4, 3, 1, 3].map(|lanes| zeros(&inp.means, n * lanes));
-    let mut cam_grads = Vec::with_capacity(inp.cams.len());
+    let v_count = inp.cams.len();
+    let (g_viewmats, g_ks) = (
+        zeros(&inp.means, v_count * 16),
+        zeros(&inp.means, v_count * 9),
+    );
     let native = has_float_atomic_add(&inp.means)
         && cfg.grad_accumulation != crate::config::GradAccumulation::CompareAndSwap;
     for v in 0..inp.cams.len() {
-        let mut cg = CameraGrad::<f32>::zero();
         if n > 0 {
             let vb = project_and_bin(inp, v, cfg);
             if let Some(bins) = vb.bins {
@@ -374,38 +396,32 @@ pub fn backward(
                     cfg.far as f32,
                     cfg.eps2d as f32,
                 );
-                // Sum the per-Gaussian camera partials on the device; only 16 floats come back.
-                let sums = read_f32(CubeBackend::float_sum_dim(
+                // Sum the per-Gaussian camera partials and lay them out as the camera
+                // tensors, all on the device.
+                let sums = CubeBackend::float_sum_dim(
                     CubeBackend::float_reshape(cam_part, Shape::new([n, CAM_GRAD_LANES])),
                     0,
-                ));
-                cg = CameraGrad {
-                    rot: Mat3([
-                        [sums[0], sums[1], sums[2]],
-                        [sums[3], sums[4], sums[5]],
-                        [sums[6], sums[7], sums[8]],
-                    ]),
-                    trans: [sums[9], sums[10], sums[11]],
-                    fx: sums[12],
-                    fy: sums[13],
-                    cx: sums[14],
-                    cy: sums[15],
-                };
+                );
+                camera_grad_matrices::launch(
+                    client,
+                    CubeCount::new_single(),
+                    CubeDim::new_1d(1),
+                    into_contiguous(sums).into_tensor_arg(),
+                    g_viewmats.clone().into_tensor_arg(),
+                    g_ks.clone().into_tensor_arg(),
+                    v as u32,
+                );
             }
         }
-        cam_grads.push(cg.to_matrices());
     }
-    let vm: Vec<f32> = cam_grads.iter().flat_map(|(m, _)| m.to_vec()).collect();
-    let ks: Vec<f32> = cam_grads.iter().flat_map(|(_, k)| k.to_vec()).collect();
     let [s_m, s_q, s_s, s_o, s_c, s_v, s_k] = shapes;
-    let device = inp.means.device.clone();
     SplatGrads {
         means: CubeBackend::float_reshape(g_means, s_m),
         quats: CubeBackend::float_reshape(g_quats, s_q),
         scales: CubeBackend::float_reshape(g_scales, s_s),
         opacities: CubeBackend::float_reshape(g_opac, s_o),
         colors: CubeBackend::float_reshape(g_colors, s_c),
-        viewmats: CubeBackend::float_from_data(TensorData::new(vm, s_v), &device),
-        ks: CubeBackend::float_from_data(TensorData::new(ks, s_k), &device),
+        viewmats: CubeBackend::float_reshape(g_viewmats, s_v),
+        ks: CubeBackend::float_reshape(g_ks, s_k),
     }
 }

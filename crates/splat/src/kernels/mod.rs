@@ -16,6 +16,7 @@
 
 pub mod bin_tiles;
 pub mod binning;
+pub mod camera_grad;
 pub mod geometry;
 pub mod launch;
 pub mod math;

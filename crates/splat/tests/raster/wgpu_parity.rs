@@ -413,3 +413,34 @@ fn wgpu_opaque_stack_stops_like_cpu() {
         &RasterConfig::default(),
     );
 }
+
+/// Guards the device-resident pipeline (no per-Gaussian or per-pixel data, and no camera
+/// gradient, crossing to the host): a forward and backward of three views reads back only
+/// the cameras once per pass and one intersection count per view and pass.
+#[test]
+fn wgpu_render_reads_back_only_cameras_and_counts() {
+    let Some(gpu) = wgpu_test_device() else {
+        return;
+    };
+    let (w, h) = (40, 30);
+    let scene = random_scene(200, 5, SceneSpec::default());
+    let mut views = two_views(w, h);
+    views.push((
+        look_at([0.1, 0.1, 0.0], [0.0, 0.0, 2.0]),
+        intrinsics(w, h, 30.0),
+    ));
+    let wts = weights(&scene, &views, w, h, &RasterConfig::default(), 3);
+    let before = envision4d_splat::kernels::launch::host_readbacks();
+    let r = run(&gpu, &scene, &views, w, h, &RasterConfig::default(), &wts);
+    let reads = envision4d_splat::kernels::launch::host_readbacks() - before;
+    assert!(
+        r.counts.iter().skip(1).step_by(2).all(|&c| c > 0),
+        "every view has tiles"
+    );
+    // Per pass (forward, backward): 2 camera tensors + 1 count per view.
+    assert_eq!(
+        reads,
+        2 * (2 + views.len()),
+        "host readbacks of one forward+backward"
+    );
+}
