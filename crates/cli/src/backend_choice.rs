@@ -1,7 +1,14 @@
-//! `--backend`: which Burn device runs the work, chosen at run time.
+//! `--backend` and `--devices`: which Burn device runs the work, chosen at run time and
+//! checked before any work starts.
+//!
+//! A GPU backend that cannot start (no adapter, no driver) or that this binary was built
+//! without is the user's to fix: an [`InputError`] naming what is missing (exit code 2),
+//! never a panic halfway through a run.
 
-use burn::tensor::{Device, DeviceKind};
+use crate::InputError;
+use burn::tensor::{Device, DeviceKind, Tensor};
 use clap::ValueEnum;
+use std::panic::{catch_unwind, AssertUnwindSafe};
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum, Default)]
 pub enum BackendChoice {
@@ -10,13 +17,85 @@ pub enum BackendChoice {
     Cpu,
     /// wgpu on the best available GPU (WGSL kernels; a software Vulkan driver also works).
     Wgpu,
+    /// CUDA on NVIDIA GPU 0 (the same CubeCL kernels; binaries built with `--features cuda`;
+    /// the driver and NVRTC are loaded at run time, no toolkit needed to build).
+    Cuda,
 }
 
+/// What a machine needs for the wgpu backend.
+const WGPU_HINT: &str = "no wgpu adapter could start; install a Vulkan, Metal or DX12 driver \
+                         (on Linux without a GPU, Mesa's lavapipe: mesa-vulkan-drivers)";
+/// What a machine needs for the CUDA backend.
+#[cfg(feature = "cuda")]
+const CUDA_HINT: &str = "CUDA could not start; it needs an NVIDIA GPU, its driver \
+                         (libcuda.so.1) and NVRTC (libnvrtc.so) on the library path";
+
 impl BackendChoice {
-    pub fn device(self) -> Device {
+    /// The device, started and checked with one tiny tensor.
+    pub fn device(self) -> Result<Device, InputError> {
         match self {
-            BackendChoice::Cpu => Device::flex(),
-            BackendChoice::Wgpu => Device::wgpu(DeviceKind::DefaultDevice),
+            BackendChoice::Cpu => Ok(Device::flex()),
+            BackendChoice::Wgpu => {
+                probe("--backend wgpu", WGPU_HINT, || Device::wgpu(DeviceKind::DefaultDevice))
+            }
+            BackendChoice::Cuda => cuda(0, "--backend cuda"),
         }
     }
+}
+
+/// One `--devices` entry (`cpu`, `wgpu`, `wgpu:N`, `cuda`, `cuda:N`), started and checked.
+pub fn parse_device(spec: &str) -> Result<Device, InputError> {
+    let spec = spec.trim();
+    let what = format!("--devices {spec}");
+    let index = |prefix: &str| spec.strip_prefix(prefix).map(str::parse::<usize>);
+    match spec {
+        "cpu" => Ok(Device::flex()),
+        "wgpu" => probe(&what, WGPU_HINT, || Device::wgpu(DeviceKind::DefaultDevice)),
+        "cuda" => cuda(0, &what),
+        _ => match (index("wgpu:"), index("cuda:")) {
+            (Some(Ok(i)), _) => probe(&what, WGPU_HINT, || {
+                Device::wgpu(DeviceKind::DiscreteGpu(i))
+            }),
+            (_, Some(Ok(i))) => cuda(i, &what),
+            _ => Err(InputError(format!(
+                "--devices: unknown device {spec:?}; use cpu, wgpu, wgpu:N, cuda or cuda:N"
+            ))),
+        },
+    }
+}
+
+#[cfg(feature = "cuda")]
+fn cuda(index: usize, what: &str) -> Result<Device, InputError> {
+    probe(what, CUDA_HINT, || Device::cuda(index))
+}
+
+#[cfg(not(feature = "cuda"))]
+fn cuda(_index: usize, what: &str) -> Result<Device, InputError> {
+    Err(InputError(format!(
+        "{what}: this binary was built without CUDA; rebuild it with \
+         `cargo build --release --features cuda` (no CUDA toolkit needed to build)"
+    )))
+}
+
+/// Starts a device and round-trips one tiny tensor through it. Backends report a missing
+/// driver by panicking deep inside; the panic is caught here, kept off stderr, and turned
+/// into an error that says what to install.
+fn probe(what: &str, hint: &str, make: impl FnOnce() -> Device) -> Result<Device, InputError> {
+    let quiet = std::panic::take_hook();
+    std::panic::set_hook(Box::new(|_| {}));
+    let started = catch_unwind(AssertUnwindSafe(|| {
+        let device = make();
+        let t = Tensor::<1>::from_floats([1.0, 2.0], &device);
+        let _ = t.into_data();
+        device
+    }));
+    std::panic::set_hook(quiet);
+    started.map_err(|payload| {
+        let cause = payload
+            .downcast_ref::<String>()
+            .map(String::as_str)
+            .or_else(|| payload.downcast_ref::<&str>().copied())
+            .unwrap_or("no message");
+        InputError(format!("{what}: {hint} (the backend said: {cause})"))
+    })
 }

@@ -272,7 +272,7 @@ pub fn run(args: EvalArgs) -> Result<()> {
         }
         return Ok(());
     }
-    let device = args.backend.device();
+    let device = args.backend.device()?;
     let lpips = lpips_status(args.lpips_weights.as_deref(), &device)?;
     let mut opts = EvalOptions::new(cfg.context_frames, lpips);
     opts.crop = args.crop.unwrap_or_default();

@@ -93,7 +93,7 @@ pub fn run(args: SplatArgs) -> Result<()> {
     let params = ply.to_render_params();
     let n = ply.len();
 
-    let device = args.backend.device();
+    let device = args.backend.device()?;
     let gaussians = Gaussians::from_host(
         params.means,
         params.quats,

@@ -1,7 +1,6 @@
 //! `envision4d train --config FILE [--resume DIR] [--dry-run] [--backend ...]`.
 
-use crate::backend_choice::BackendChoice;
-use crate::InputError;
+use crate::backend_choice::{parse_device, BackendChoice};
 use anyhow::Result;
 use clap::Args;
 use envision4d_train::freeze::ParamSplit;
@@ -38,28 +37,9 @@ pub struct TrainArgs {
     #[arg(long, value_enum, default_value_t = BackendChoice::Cpu)]
     backend: BackendChoice,
     /// Data-parallel devices, comma-separated: `wgpu:0,wgpu:1` (discrete GPUs by index),
-    /// `wgpu` (the default GPU), `cpu`. The batch is split evenly; see docs/TRAINING.md.
+    /// `wgpu` (the default GPU), `cuda:0,cuda:1` (NVIDIA GPUs, `--features cuda`), `cpu`. The batch is split evenly; see docs/TRAINING.md.
     #[arg(long, value_delimiter = ',')]
     devices: Vec<String>,
-}
-
-/// One `--devices` entry as an autodiff device.
-fn parse_device(spec: &str) -> Result<burn::tensor::Device> {
-    use burn::tensor::{Device, DeviceKind};
-    let d = match spec.trim() {
-        "cpu" => Device::flex(),
-        "wgpu" => Device::wgpu(DeviceKind::DefaultDevice),
-        other => match other.strip_prefix("wgpu:").map(str::parse::<usize>) {
-            Some(Ok(i)) => Device::wgpu(DeviceKind::DiscreteGpu(i)),
-            _ => {
-                return Err(InputError(format!(
-                    "--devices: unknown device {other:?}; use cpu, wgpu or wgpu:N"
-                ))
-                .into())
-            }
-        },
-    };
-    Ok(d.autodiff())
 }
 
 pub fn run(args: TrainArgs) -> Result<()> {
@@ -73,13 +53,13 @@ pub fn run(args: TrainArgs) -> Result<()> {
     let devices = args
         .devices
         .iter()
-        .map(|d| parse_device(d))
-        .collect::<Result<Vec<_>>>()?;
+        .map(|d| parse_device(d).map(|d| d.autodiff()))
+        .collect::<Result<Vec<_>, _>>()?;
     // With --devices the first one holds the model and the optimiser.
-    let device = devices
-        .first()
-        .cloned()
-        .unwrap_or_else(|| args.backend.device().autodiff());
+    let device = match devices.first() {
+        Some(d) => d.clone(),
+        None => args.backend.device()?.autodiff(),
+    };
     if args.dry_run {
         return dry_run(&args, cfg, &device);
     }

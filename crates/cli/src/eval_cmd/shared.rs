@@ -39,7 +39,7 @@ pub fn load_model(
     checkpoint: &Path,
     backend: BackendChoice,
 ) -> Result<Envision4d> {
-    let mut model = Envision4d::new(cfg, &backend.device());
+    let mut model = Envision4d::new(cfg, &backend.device()?);
     load_checkpoint(&mut model, checkpoint, CheckpointKind::Full)
         .map_err(|e| InputError(e.to_string()))?;
     Ok(model)
@@ -55,7 +55,7 @@ pub fn lpips_status(weights: Option<&Path>, device: &Device) -> Result<LpipsStat
     Ok(lpips)
 }
 
-/// On a JIT backend (wgpu) the first pass compiles kernels; one untimed clip keeps that out
+/// On a JIT backend (wgpu, CUDA) the first pass compiles kernels; one untimed clip keeps that out
 /// of the reported times. The CPU backend has nothing to compile.
 pub fn warm_up(
     model: &Envision4d,

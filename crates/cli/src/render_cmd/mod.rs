@@ -91,7 +91,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
         .into());
     }
     let out_dir = plan.out.as_deref().map(OutDir::create).transpose()?;
-    let device = args.backend.device();
+    let device = args.backend.device()?;
     let model = input::load_model(&cfg, &source, &device)?;
     let images = input::read_input(&args.input, &cfg, &device)?;
     let t_load = t0.elapsed();
