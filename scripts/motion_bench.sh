@@ -26,10 +26,11 @@
 #
 # Finished runs and evaluations are kept: rerunning the script continues where it stopped
 # (an interrupted training resumes from its last checkpoint; a run whose evaluations are all
-# there is not trained again). KEEP=dir also copies every finished evaluation's metrics.json
-# to dir/<run>/eval-<preset>/ and reads them back from there first, so a benchmark longer
-# than one machine's life continues on the next (the Motion tables of docs/RESULTS.md are
-# rebuilt from docs/results/motion-shipped this way).
+# there is not trained again). KEEP=dir also keeps every finished evaluation, slimmed to what
+# the tables read (scripts/motion_keep.py), as dir/<run>/eval-<preset>/metrics.json.gz and
+# reads them back from there first, so a benchmark longer than one machine's life continues
+# on the next (the Motion tables of docs/RESULTS.md are rebuilt from
+# docs/results/motion-shipped this way).
 set -euo pipefail
 BIN=${ENVISION4D:-${CARGO_TARGET_DIR:-target}/release/envision4d}
 ROOT=${MOTION_ROOT:-.}
@@ -58,10 +59,12 @@ mkdir -p "$DATA" "$RUNS"
 KEEP=${KEEP:-}
 if [ -n "$KEEP" ] && [ -d "$KEEP" ]; then
   # Evaluations finished elsewhere count as finished here.
-  (cd "$KEEP" && find . -path '*/eval-*/metrics.json') | while read -r f; do
-    if [ ! -f "$RUNS/$f" ]; then
-      mkdir -p "$(dirname "$RUNS/$f")"
-      cp "$KEEP/$f" "$RUNS/$f"
+  (cd "$KEEP" && find . -path '*/eval-*/metrics.json.gz') | while read -r f; do
+    dst="$RUNS/${f%.gz}"
+    if [ ! -f "$dst" ]; then
+      mkdir -p "$(dirname "$dst")"
+      gzip -dc "$KEEP/$f" > "$dst.tmp"
+      mv "$dst.tmp" "$dst"
     fi
   done
 fi
@@ -148,10 +151,10 @@ for v in $VARIANTS; do
         "$BIN" eval --checkpoint "$RUNS/$v-s$s/model.safetensors" --data "$DATA/motion-heldout/$p" \
           --out "$out" > "$RUNS/$v-s$s/eval-$p.txt"
       fi
-      if [ -n "$KEEP" ] && [ -z "${SMOKE:-}" ] && [ ! -f "$KEEP/$v-s$s/eval-$p/metrics.json" ]; then
+      if [ -n "$KEEP" ] && [ -z "${SMOKE:-}" ] && [ ! -f "$KEEP/$v-s$s/eval-$p/metrics.json.gz" ]; then
         mkdir -p "$KEEP/$v-s$s/eval-$p"
-        cp "$out/metrics.json" "$KEEP/$v-s$s/eval-$p/metrics.json.tmp"
-        mv "$KEEP/$v-s$s/eval-$p/metrics.json.tmp" "$KEEP/$v-s$s/eval-$p/metrics.json"
+        python3 "$(dirname "$0")/motion_keep.py" "$out/metrics.json" \
+          "$KEEP/$v-s$s/eval-$p/metrics.json.gz"
       fi
     done
   done

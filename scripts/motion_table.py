@@ -20,6 +20,7 @@ paired columns are left out.
 
 Standard library only. Usage: motion_table.py RUNS_DIR "variants" "seeds" "presets"
 """
+import gzip
 import json
 import math
 import os
@@ -33,6 +34,16 @@ REFERENCE = "cml"
 # Rows computed from the reference's runs: test-time zeroed and oracle displacements.
 DERIVED = {"cml-zeroed": "no_motion", "cml-oracle": "oracle_motion"}
 
+
+
+def read_metrics(folder):
+    """An evaluation's metrics.json, or the slimmed metrics.json.gz kept by motion_bench.sh."""
+    path = os.path.join(folder, "metrics.json")
+    if os.path.exists(path):
+        with open(path) as f:
+            return json.load(f)
+    with gzip.open(path + ".gz", "rt") as f:
+        return json.load(f)
 
 def t975(df):
     if df <= 0:
@@ -65,9 +76,7 @@ def model_values(clip, method):
 def load(runs, variant, seed, preset):
     src = REFERENCE if variant in DERIVED else variant
     method = DERIVED.get(variant, "model")
-    path = os.path.join(runs, f"{src}-s{seed}", f"eval-{preset}", "metrics.json")
-    with open(path) as f:
-        report = json.load(f)
+    report = read_metrics(os.path.join(runs, f"{src}-s{seed}", f"eval-{preset}"))
     return {c["clip"]: model_values(c, method) for c in report["clips"]}
 
 
