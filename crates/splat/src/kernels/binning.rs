@@ -2,11 +2,9 @@
 //! of four bytes per view (the intersection count, which sizes the intersection buffers).
 
 use super::bin_tiles::{depth_keys, emit_intersections, tile_counts, tile_ranges};
+use super::readback::read_u32_at;
 use super::sort::{empty_u32, exclusive_scan, sort_pairs};
-use burn::backend::ops::IntTensorOps;
-use burn::tensor::{read_sync, Slice};
 use burn_cubecl::tensor::CubeTensor;
-use burn_cubecl::CubeBackend;
 use cubecl::{calculate_cube_count_elemwise, CubeDim};
 
 /// Key bits of the depth sort: the whole f32 pattern (and `CULLED`).
@@ -25,17 +23,6 @@ pub struct DeviceBins {
 /// Bits that hold every tile id below `num_tiles`.
 pub fn tile_bits(num_tiles: u32) -> u32 {
     (u32::BITS - num_tiles.saturating_sub(1).leading_zeros()).max(1)
-}
-
-/// Reads element `i` of a u32 buffer (the one readback of the binning).
-fn read_u32_at(t: &CubeTensor, i: usize) -> u32 {
-    super::launch::count_readback();
-    let one = CubeBackend::int_slice(t.clone(), &[Slice::from(i..i + 1)]);
-    let data = read_sync(CubeBackend::int_into_data(one))
-        .unwrap_or_else(|e| panic!("splat: device readback failed: {e:?}"));
-    data.convert::<i64>()
-        .try_into_vec::<i64>()
-        .unwrap_or_else(|e| panic!("splat: tensor conversion failed: {e:?}"))[0] as u32
 }
 
 /// Bins the `n` projected Gaussians of one view (`records`, `meta` from `project_forward`)

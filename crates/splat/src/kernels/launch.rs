@@ -12,6 +12,7 @@ use super::project_backward::{project_backward, CAM_GRAD_LANES};
 use super::project_forward::{project_forward, META_LANES, RECORD_LANES};
 use super::rasterize_backward::{rasterize_backward, CasAdd, NativeAdd};
 use super::rasterize_forward::{rasterize_forward, OUT_CHANNELS, TILE};
+use super::readback::read_f32;
 use super::sort::{empty_u32, exclusive_scan, retype};
 use super::view_meta::{radii_and_flags, view_counts};
 use crate::backend::SplatGrads;
@@ -20,7 +21,7 @@ use crate::config::RasterConfig;
 use burn::backend::ops::{FloatTensorOps, IntTensorOps};
 use burn::backend::tensor::{FloatTensor, IntTensor};
 use burn::backend::TensorMetadata;
-use burn::tensor::{read_sync, DType, Shape, TensorData};
+use burn::tensor::{DType, Shape, TensorData};
 use burn_cubecl::kernel::into_contiguous;
 use burn_cubecl::ops::numeric::{empty_device_dtype, zeros_client};
 use burn_cubecl::tensor::CubeTensor;
@@ -28,33 +29,6 @@ use burn_cubecl::CubeBackend;
 use cubecl::features::AtomicUsage;
 use cubecl::ir::{ElemType, FloatKind, Type};
 use cubecl::{calculate_cube_count_elemwise, CubeCount, CubeDim};
-
-thread_local! {
-    /// Device-to-host reads made by this thread's renders (see [`host_readbacks`]).
-    static READBACKS: std::cell::Cell<usize> = const { std::cell::Cell::new(0) };
-}
-
-/// How many times this thread's CubeCL renders have read the device back so far. A render
-/// call reads its cameras (two tiny tensors) once, and each view its intersection count
-/// (4 bytes) once per pass; nothing else comes back. Tests count with it; it is per thread
-/// so parallel tests do not disturb each other.
-pub fn host_readbacks() -> usize {
-    READBACKS.with(|c| c.get())
-}
-
-/// Counts one device-to-host read of this thread.
-pub(crate) fn count_readback() {
-    READBACKS.with(|c| c.set(c.get() + 1));
-}
-
-fn read_f32(t: CubeTensor) -> Vec<f32> {
-    count_readback();
-    let data = read_sync(CubeBackend::float_into_data(t))
-        .unwrap_or_else(|e| panic!("splat: device readback failed: {e:?}"));
-    data.convert::<f32>()
-        .try_into_vec::<f32>()
-        .unwrap_or_else(|e| panic!("splat: tensor conversion failed: {e:?}"))
-}
 
 /// A flat (1-D, contiguous) view of `t`, so kernels may index it with `row * lanes + k`.
 fn flat(t: CubeTensor) -> CubeTensor {

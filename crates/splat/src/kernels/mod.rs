@@ -25,6 +25,7 @@ pub mod project_forward;
 pub mod radix_sort;
 pub mod rasterize_backward;
 pub mod rasterize_forward;
+pub mod readback;
 pub mod scan;
 pub mod sort;
 pub mod view_meta;

@@ -430,9 +430,9 @@ fn wgpu_render_reads_back_only_cameras_and_counts() {
         intrinsics(w, h, 30.0),
     ));
     let wts = weights(&scene, &views, w, h, &RasterConfig::default(), 3);
-    let before = envision4d_splat::kernels::launch::host_readbacks();
+    let before = envision4d_splat::kernels::readback::host_readbacks();
     let r = run(&gpu, &scene, &views, w, h, &RasterConfig::default(), &wts);
-    let reads = envision4d_splat::kernels::launch::host_readbacks() - before;
+    let reads = envision4d_splat::kernels::readback::host_readbacks() - before;
     assert!(
         r.counts.iter().skip(1).step_by(2).all(|&c| c > 0),
         "every view has tiles"
