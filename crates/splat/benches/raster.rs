@@ -2,9 +2,11 @@
 //! 100k and 362k Gaussians (two frames of per-pixel Gaussians, as Envision4D renders them).
 //!
 //! `cargo bench -p envision4d-splat --bench raster [-- --wgpu] [--quick] [--max-gaussians N]`
+//! `... -- --backends wgpu,cuda --sizes 362600,1000000,3000000 --json FILE` (what
+//! `scripts/gpu_bench.sh` runs; `cuda` needs `--features envision4d-splat/cuda`).
 //! Prints ms per view and Gaussian-tile pairs per second, then the binning's building blocks
 //! alone (the stable sort of 32-bit keys and the exclusive scan, results read back); results
-//! go to docs/PERFORMANCE.md.
+//! go to docs/PERFORMANCE.md. Scenes past 362,600 Gaussians take more frames of the street.
 
 use burn::tensor::{DType, Int, Tensor, TensorData};
 use burn::tensor::{Device, DeviceKind};
@@ -124,19 +126,26 @@ fn time<T>(reps: usize, mut f: impl FnMut() -> T) -> Duration {
 fn main() {
     let args: Vec<String> = std::env::args().collect();
     let quick = args.iter().any(|a| a == "--quick");
-    let mut devices = vec![("cpu (burn-flex + rayon)", Device::flex())];
-    if args.iter().any(|a| a == "--wgpu") {
-        devices.push(("wgpu", Device::wgpu(DeviceKind::DefaultDevice)));
-    }
+    let backends: Vec<String> = match arg(&args, "--backends") {
+        Some(list) => list.split(',').map(str::to_owned).collect(),
+        None if args.iter().any(|a| a == "--wgpu") => vec!["cpu".into(), "wgpu".into()],
+        None => vec!["cpu".into()],
+    };
+    let devices: Vec<(&str, Device)> = backends.iter().map(|b| device(b)).collect();
     let reps = if quick { 1 } else { 3 };
     // Software Vulkan (lavapipe) is far too slow for the big scenes; let a run cap the size.
-    let max_n: usize = args
-        .iter()
-        .position(|a| a == "--max-gaussians")
-        .and_then(|i| args.get(i + 1))
+    let max_n: usize = arg(&args, "--max-gaussians")
         .map(|v| v.parse().expect("--max-gaussians takes a number"))
         .unwrap_or(usize::MAX);
     let full = street_scene(2, 7);
+    let sizes: Vec<usize> = match arg(&args, "--sizes") {
+        Some(list) => list
+            .split(',')
+            .map(|v| v.parse().expect("--sizes takes numbers"))
+            .collect(),
+        None => vec![10_000, 100_000, full.len()],
+    };
+    let mut json_rows = Vec::new();
     let sort_devices = devices.clone();
     let cfg = RasterConfig::default();
     println!(
@@ -148,15 +157,8 @@ fn main() {
     println!("| backend | Gaussians | visible | tile pairs | forward ms/view | fwd+bwd ms/view | fwd pairs/s | fwd+bwd pairs/s |");
     println!("|---|---|---|---|---|---|---|---|");
     for (name, device) in devices {
-        for n in [10_000usize, 100_000, full.len()]
-            .into_iter()
-            .filter(|n| *n <= max_n)
-        {
-            let scene = if n == full.len() {
-                full.clone()
-            } else {
-                subsample(&full, n, 3)
-            };
+        for &n in sizes.iter().filter(|n| **n <= max_n) {
+            let scene = scene_of(&full, n);
             let (g, c) = tensors(&scene, &device, false);
             let out = render(&g, &c, &cfg).unwrap();
             let counts = out
@@ -176,6 +178,14 @@ fn main() {
                 let grads = (out.rgb.sum() + out.depth.sum() * 0.01).backward();
                 ga.means.grad(&grads).unwrap().into_data()
             });
+            json_rows.push(format!(
+                "{{\"kind\":\"raster\",\"backend\":\"{name}\",\"gaussians\":{n},\
+                 \"visible\":{},\"tile_pairs\":{},\"forward_ms\":{:.3},\"fwd_bwd_ms\":{:.3}}}",
+                counts[0],
+                counts[1],
+                fwd.as_secs_f64() * 1e3,
+                fb.as_secs_f64() * 1e3
+            ));
             println!(
                 "| {name} | {n} | {} | {} | {:.1} | {:.1} | {:.2e} | {:.2e} |",
                 counts[0],
@@ -206,6 +216,13 @@ fn main() {
             let t32 = time(reps, || sort(&k32, 32));
             let t12 = time(reps, || sort(&k12, 12));
             let ts = time(reps, || exclusive_scan(k12.clone()).unwrap().into_data());
+            json_rows.push(format!(
+                "{{\"kind\":\"sort\",\"backend\":\"{name}\",\"elements\":{n},\
+                 \"sort32_ms\":{:.3},\"sort12_ms\":{:.3},\"scan_ms\":{:.3}}}",
+                t32.as_secs_f64() * 1e3,
+                t12.as_secs_f64() * 1e3,
+                ts.as_secs_f64() * 1e3
+            ));
             println!(
                 "| {name} | {n} | {:.1} | {:.1} | {:.1} |",
                 t32.as_secs_f64() * 1e3,
@@ -214,4 +231,40 @@ fn main() {
             );
         }
     }
+    if let Some(path) = arg(&args, "--json") {
+        let text = format!("[\n{}\n]\n", json_rows.join(",\n"));
+        let tmp = format!("{path}.tmp");
+        std::fs::write(&tmp, text).expect("--json: write");
+        std::fs::rename(&tmp, &path).expect("--json: rename");
+    }
+}
+
+fn arg(args: &[String], name: &str) -> Option<String> {
+    args.iter()
+        .position(|a| a == name)
+        .and_then(|i| args.get(i + 1).cloned())
+}
+
+/// A backend name of `--backends` as its device.
+fn device(name: &str) -> (&'static str, Device) {
+    match name {
+        "cpu" => ("cpu (burn-flex + rayon)", Device::flex()),
+        "wgpu" => ("wgpu", Device::wgpu(DeviceKind::DefaultDevice)),
+        #[cfg(feature = "cuda")]
+        "cuda" => ("cuda", Device::cuda(0)),
+        other => panic!("--backends: {other} is not built in (cpu, wgpu, cuda with --features cuda)"),
+    }
+}
+
+/// `n` Gaussians of the street: a random subset of the two-frame scene, or of as many
+/// frames as it takes past that.
+fn scene_of(two_frames: &HostScene, n: usize) -> HostScene {
+    if n == two_frames.len() {
+        return two_frames.clone();
+    }
+    if n < two_frames.len() {
+        return subsample(two_frames, n, 3);
+    }
+    let frames = n.div_ceil(two_frames.len() / 2);
+    subsample(&street_scene(frames, 7), n, 3)
 }
