@@ -6,31 +6,68 @@
 #   scripts/gpu_bench.sh                          # wgpu (and cuda with CUDA=1)
 #   CUDA=1 scripts/gpu_bench.sh                   # also --backend cuda (--features cuda build)
 #   SIZES=10000,100000 scripts/gpu_bench.sh       # smaller scenes (lavapipe: a CPU)
-#   RASTER_BIN=path scripts/gpu_bench.sh          # a prebuilt raster bench (built elsewhere)
+#   RASTER_BIN=path FORWARD_BIN=path scripts/gpu_bench.sh   # prebuilt benches (built elsewhere)
+#   MODEL_PRESET=tiny MODEL_IMAGE=56x84 scripts/gpu_bench.sh  # a small model (lavapipe)
+#   MODEL_MODES=forward scripts/gpu_bench.sh      # no training step
+#   SKIP_MODEL=1 scripts/gpu_bench.sh             # the rasterizer only
 #
-# Not in it yet: the paper-size model forward, a paper-size training step and peak GPU
-# memory (the model's benchmark, crates/model/benches/forward.rs, runs on the CPU only).
+# The model part is crates/model/benches/forward.rs on each GPU backend: the paper-size
+# forward (VGGT-1B widths, 2 context frames at 350x518, random weights) and one training
+# step (forward + backward of every output, all parameters trainable). Its memory column is
+# the host's peak RSS; peak GPU memory is not measured yet.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 OUT=${OUT:-runs/gpu-bench}
 SIZES=${SIZES:-362600,1000000,3000000}
 BACKENDS=wgpu
 FEATURES=()
+MODEL_FEATURES=()
 if [ -n "${CUDA:-}" ]; then
   BACKENDS=wgpu,cuda
   FEATURES=(--features envision4d-splat/cuda)
+  MODEL_FEATURES=(--features envision4d-model/cuda)
 fi
+MODEL_PRESET=${MODEL_PRESET:-paper}
+MODEL_IMAGE=${MODEL_IMAGE:-350x518}
+MODEL_MODES=${MODEL_MODES:-forward train}
 mkdir -p "$OUT"
 export XDG_RUNTIME_DIR="${XDG_RUNTIME_DIR:-$(mktemp -d)}"
-BIN=${RASTER_BIN:-}
-if [ -z "$BIN" ]; then
-  # The bench binary's path is the last word of cargo's "Executable" line.
-  BIN=$(cargo bench --workspace --bench raster --no-run "${FEATURES[@]}" 2>&1 \
+# A bench binary: the given path, or built here (its path ends cargo's "Executable" line).
+bench_bin() {
+  local given=$1 name=$2
+  shift 2
+  if [ -n "$given" ]; then
+    echo "$given"
+    return
+  fi
+  local bin
+  bin=$(cargo bench --workspace --bench "$name" --no-run "$@" 2>&1 \
     | sed -n 's/.*Executable .*(\(.*\))$/\1/p' | tail -1)
-  [ -x "$BIN" ] || { echo "gpu_bench: could not build the raster bench" >&2; exit 1; }
-fi
+  [ -x "$bin" ] || { echo "gpu_bench: could not build the $name bench" >&2; exit 1; }
+  echo "$bin"
+}
+BIN=$(bench_bin "${RASTER_BIN:-}" raster "${FEATURES[@]}")
 echo "== raster and sort on $BACKENDS, sizes $SIZES ($(date -u +%FT%TZ))"
 "$BIN" --backends "$BACKENDS" --sizes "$SIZES" --json "$OUT/raster.json" | tee "$OUT/raster.md.tmp"
+: > "$OUT/model.md.tmp"
+if [ -z "${SKIP_MODEL:-}" ]; then
+  FWD=$(bench_bin "${FORWARD_BIN:-}" forward "${MODEL_FEATURES[@]}")
+  {
+    echo
+    echo "| backend | model | mode | seconds | host peak RSS GiB |"
+    echo "|---|---|---|---|---|"
+  } >> "$OUT/model.md.tmp"
+  for b in ${BACKENDS//,/ }; do
+    for mode in $MODEL_MODES; do
+      echo "== model $MODEL_PRESET at $MODEL_IMAGE, $mode, $b"
+      line=$("$FWD" --preset "$MODEL_PRESET" --image "$MODEL_IMAGE" --device "$b" --mode "$mode" \
+        --repeats 1 | tee /dev/stderr | grep -E '^(forward_warm_s|train_step_s)=' | tail -1)
+      secs=$(echo "$line" | sed -n 's/.*_s=\([0-9.]*\).*/\1/p')
+      rss=$(echo "$line" | sed -n 's/.*peak_rss_gib=\([0-9.]*\).*/\1/p')
+      echo "| $b | $MODEL_PRESET, $MODEL_IMAGE | $mode | $secs | $rss |" >> "$OUT/model.md.tmp"
+    done
+  done
+fi
 # Which GPU: the adapter names the drivers report, where the tools exist.
 {
   echo "# GPU benchmark, $(date -u +%F)"
@@ -41,9 +78,9 @@ echo "== raster and sort on $BACKENDS, sizes $SIZES ($(date -u +%FT%TZ))"
   if command -v vulkaninfo >/dev/null 2>&1; then
     echo "Vulkan: $(vulkaninfo --summary 2>/dev/null | sed -n 's/.*deviceName *= *//p' | head -1)"
   fi
-  echo "Command: scripts/gpu_bench.sh (SIZES=$SIZES, backends $BACKENDS)"
+  echo "Command: scripts/gpu_bench.sh (SIZES=$SIZES, backends $BACKENDS; model $MODEL_PRESET at $MODEL_IMAGE, modes: ${SKIP_MODEL:+none}${SKIP_MODEL:-$MODEL_MODES})"
   echo
-  cat "$OUT/raster.md.tmp"
+  cat "$OUT/raster.md.tmp" "$OUT/model.md.tmp"
 } > "$OUT/gpu-bench.md"
-rm "$OUT/raster.md.tmp"
+rm "$OUT/raster.md.tmp" "$OUT/model.md.tmp"
 echo "wrote $OUT/gpu-bench.md and $OUT/raster.json"

@@ -1,10 +1,14 @@
-//! Forward (and forward + backward) benchmark of the network (not a test), on the CPU backend.
+//! Forward (and forward + backward) benchmark of the network (not a test), on the CPU backend
+//! or a GPU (`--device wgpu`, or `cuda` with `--features envision4d-model/cuda`).
 //!
 //! ```text
 //! cargo bench -p envision4d-model --bench forward -- [--preset paper|tiny]
 //!     [--mode forward|train] [--heads all|none|depth|gaussians|motion] [--image HxW]
 //!     [--future N] [--images FILE.safetensors] [--repeats N] [--chunk N] [--profile]
+//!     [--device cpu|wgpu|cuda]
 //! ```
+//!
+//! On a GPU the peak RSS is the host process's, not the GPU's memory.
 //!
 //! The weights are drawn (and every lazy parameter materialised) before any clock starts,
 //! then one untimed pass warms the allocator and the thread pool. Each timed pass prints a
@@ -129,8 +133,14 @@ fn main() {
         Some(h) => panic!("--heads {h}: use all or none"),
     };
     let repeats: usize = arg(&args, "--repeats").map_or(3, |r| r.parse().expect("--repeats N"));
-    let flex = Device::flex();
-    let device = if train { flex.autodiff() } else { flex };
+    let base = match arg(&args, "--device").as_deref() {
+        None | Some("cpu") => Device::flex(),
+        Some("wgpu") => Device::wgpu(burn::tensor::DeviceKind::DefaultDevice),
+        #[cfg(feature = "cuda")]
+        Some("cuda") => Device::cuda(0),
+        Some(d) => panic!("--device {d}: use cpu, wgpu or cuda (with --features cuda)"),
+    };
+    let device = if train { base.autodiff() } else { base };
     let images = match arg(&args, "--images") {
         Some(p) => read_images(&p, &device),
         None => {
