@@ -35,9 +35,9 @@ impl BackendChoice {
     pub fn device(self) -> Result<Device, InputError> {
         match self {
             BackendChoice::Cpu => Ok(Device::flex()),
-            BackendChoice::Wgpu => {
-                probe("--backend wgpu", WGPU_HINT, || Device::wgpu(DeviceKind::DefaultDevice))
-            }
+            BackendChoice::Wgpu => probe("--backend wgpu", WGPU_HINT, || {
+                Device::wgpu(DeviceKind::DefaultDevice)
+            }),
             BackendChoice::Cuda => cuda(0, "--backend cuda"),
         }
     }

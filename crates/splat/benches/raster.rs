@@ -252,7 +252,9 @@ fn device(name: &str) -> (&'static str, Device) {
         "wgpu" => ("wgpu", Device::wgpu(DeviceKind::DefaultDevice)),
         #[cfg(feature = "cuda")]
         "cuda" => ("cuda", Device::cuda(0)),
-        other => panic!("--backends: {other} is not built in (cpu, wgpu, cuda with --features cuda)"),
+        other => {
+            panic!("--backends: {other} is not built in (cpu, wgpu, cuda with --features cuda)")
+        }
     }
 }
 
