@@ -170,6 +170,8 @@ pub fn run(args: DemoArgs) -> Result<()> {
         "{}",
         print::header(&setup.checkpoint, synth, cfg, args.backend)
     );
+    // A backend that cannot start fails before anything is written.
+    let device = args.backend.device()?;
     atomic::create_dir(&args.out)
         .map_err(|e| InputError(format!("--out {}: {e}", args.out.display())))?;
 
@@ -198,7 +200,6 @@ pub fn run(args: DemoArgs) -> Result<()> {
         .map_err(|e| ours(&e))?;
     // Window 0 is the clip's first T_c + T_f frames (the only window the demo writes).
     let indices = [0];
-    let device = args.backend.device()?;
     let opts = EvalOptions::new(cfg.context_frames, shared::lpips_status(None, &device)?);
     shared::warm_up(&model, &dataset, &indices, &opts, args.backend).map_err(|e| ours(&e))?;
     let run = evaluate_dataset(&model, &dataset, &indices, &opts, |_| bar.inc(1))

@@ -233,6 +233,28 @@ fn missing_checkpoint_is_an_input_error() {
     );
 }
 
+/// Guards a GPU backend the binary lacks (or cannot start): an input error (exit code 2)
+/// saying how to get it, raised before the output folder exists, not a panic mid-run.
+#[test]
+fn unavailable_backend_is_an_input_error_before_any_output() {
+    if cfg!(feature = "cuda") {
+        return; // a CUDA build would try the driver instead
+    }
+    let out = scratch().join("no-cuda");
+    let o = demo(&["--backend", "cuda", "--out", s(&out)], scratch());
+    let (_, stderr) = text(&o);
+    assert_eq!(o.status.code(), Some(2), "{stderr}");
+    assert!(
+        stderr.contains("--features cuda"),
+        "no way out named: {stderr}"
+    );
+    assert!(
+        !out.exists(),
+        "the demo wrote {} before failing",
+        out.display()
+    );
+}
+
 /// Guards the README's first command, `envision4d demo` with no arguments: the shipped model
 /// is in the repository, and the demo runs with it from any folder and writes what it prints.
 #[test]
