@@ -124,3 +124,12 @@ pub fn tile_ranges(tile_ids: &Tensor<u32>, tile_start: &mut Tensor<u32>, m: u32,
         tile_start[u as usize] = j;
     }
 }
+
+/// One unit: `totals[view] = offsets[n]`, the view's intersection count, so every view's
+/// count comes back in one read.
+#[cube(launch)]
+pub fn copy_total(offsets: &Tensor<u32>, totals: &mut Tensor<u32>, n: u32, view: u32) {
+    if ABSOLUTE_POS == 0 {
+        totals[view as usize] = offsets[n as usize];
+    }
+}

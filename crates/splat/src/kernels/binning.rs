@@ -1,11 +1,12 @@
-//! Host side of the device tile binning ([`super::bin_tiles`]): launches, and one readback
-//! of four bytes per view (the intersection count, which sizes the intersection buffers).
+//! Host side of the device tile binning ([`super::bin_tiles`]), in two halves so that a
+//! render call reads back once, whatever its number of views: [`order_view`] for every view
+//! (depth order, tile counts, each view's intersection total into one small buffer), then
+//! one readback of the totals (they size the intersection buffers), then [`bins_of_view`].
 
-use super::bin_tiles::{depth_keys, emit_intersections, tile_counts, tile_ranges};
-use super::readback::read_u32_at;
+use super::bin_tiles::{copy_total, depth_keys, emit_intersections, tile_counts, tile_ranges};
 use super::sort::{empty_u32, exclusive_scan, sort_pairs};
 use burn_cubecl::tensor::CubeTensor;
-use cubecl::{calculate_cube_count_elemwise, CubeDim};
+use cubecl::{calculate_cube_count_elemwise, CubeCount, CubeDim};
 
 /// Key bits of the depth sort: the whole f32 pattern (and `CULLED`).
 const DEPTH_BITS: u32 = 32;
@@ -25,18 +26,35 @@ pub fn tile_bits(num_tiles: u32) -> u32 {
     (u32::BITS - num_tiles.saturating_sub(1).leading_zeros()).max(1)
 }
 
-/// Bins the `n` projected Gaussians of one view (`records`, `meta` from `project_forward`)
-/// into the `tiles_x x tiles_y` tiles; `None` when no Gaussian touches a tile.
-pub fn bin_on_device(
+/// A view's Gaussians in depth order, with every one's first intersection slot: the first
+/// half of the binning, run for every view before the one readback of all their totals.
+pub struct DepthOrder {
+    keys: CubeTensor,
+    order: CubeTensor,
+    /// `n + 1` exclusive offsets; the last is the view's intersection count.
+    offsets: CubeTensor,
+}
+
+impl DepthOrder {
+    /// A placeholder holding no buffers (what is left after the tile lists took a view's).
+    pub fn empty(like: &CubeTensor) -> Self {
+        DepthOrder {
+            keys: empty_u32(like, 0),
+            order: empty_u32(like, 0),
+            offsets: empty_u32(like, 0),
+        }
+    }
+}
+
+/// Depth keys, the stable depth sort, tile counts and their scan for one view's `n > 0`
+/// projected Gaussians; the view's intersection count goes to `totals[view]` on the device.
+pub fn order_view(
     records: &CubeTensor,
     meta: &CubeTensor,
     n: usize,
-    tiles_x: u32,
-    tiles_y: u32,
-) -> Option<DeviceBins> {
-    if n == 0 {
-        return None;
-    }
+    totals: &CubeTensor,
+    view: usize,
+) -> DepthOrder {
     let client = &records.client;
     let n_u = n as u32;
     let per_gaussian = CubeDim::new(client, n);
@@ -56,7 +74,7 @@ pub fn bin_on_device(
     let counts = empty_u32(records, n);
     tile_counts::launch(
         client,
-        grid_n.clone(),
+        grid_n,
         per_gaussian,
         keys.clone().into_tensor_arg(),
         order.clone().into_tensor_arg(),
@@ -65,27 +83,54 @@ pub fn bin_on_device(
         n_u,
     );
     let offsets = exclusive_scan(&counts, n, n + 1);
-    let m = read_u32_at(&offsets, n) as usize;
+    copy_total::launch(
+        client,
+        CubeCount::new_single(),
+        CubeDim::new_1d(1),
+        offsets.clone().into_tensor_arg(),
+        totals.clone().into_tensor_arg(),
+        n_u,
+        view as u32,
+    );
+    DepthOrder {
+        keys,
+        order,
+        offsets,
+    }
+}
+
+/// The second half: the `m` (tile, Gaussian) intersections of a view in tile order and its
+/// CSR tile lists over `tiles_x x tiles_y` tiles; `None` when `m` is 0.
+pub fn bins_of_view(
+    depth: DepthOrder,
+    meta: &CubeTensor,
+    n: usize,
+    m: usize,
+    tiles_x: u32,
+    tiles_y: u32,
+) -> Option<DeviceBins> {
     if m == 0 {
         return None;
     }
-    let (tile_ids, items) = (empty_u32(records, m), empty_u32(records, m));
+    let client = &meta.client;
+    let per_gaussian = CubeDim::new(client, n);
+    let (tile_ids, items) = (empty_u32(meta, m), empty_u32(meta, m));
     emit_intersections::launch(
         client,
-        grid_n,
+        calculate_cube_count_elemwise(client, n, per_gaussian),
         per_gaussian,
-        keys.into_tensor_arg(),
-        order.into_tensor_arg(),
+        depth.keys.into_tensor_arg(),
+        depth.order.into_tensor_arg(),
         meta.clone().into_tensor_arg(),
-        offsets.into_tensor_arg(),
+        depth.offsets.into_tensor_arg(),
         tile_ids.clone().into_tensor_arg(),
         items.clone().into_tensor_arg(),
-        n_u,
+        n as u32,
         tiles_x,
     );
     let num_tiles = tiles_x * tiles_y;
     let (tile_ids, items) = sort_pairs(&tile_ids, &items, m, tile_bits(num_tiles));
-    let tile_start = empty_u32(records, num_tiles as usize + 1);
+    let tile_start = empty_u32(meta, num_tiles as usize + 1);
     let per_slot = CubeDim::new(client, m + 1);
     tile_ranges::launch(
         client,

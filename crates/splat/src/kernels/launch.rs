@@ -1,18 +1,18 @@
-//! Host side of the CubeCL rasterizer: camera records, kernel launches, host binning and the
-//! reductions, for f32 tensors of any CubeCL runtime.
+//! Host side of the CubeCL rasterizer: camera records, kernel launches and the per-view
+//! driver, for f32 tensors of any CubeCL runtime (the binning's launches in `binning`).
 //!
 //! Every launch is skipped when its work is empty (N == 0, no visible Gaussian, no tile
 //! intersection): CubeCL does not support zero-size dispatches, and the zero-filled outputs
 //! are already the right answer.
 
-use super::binning::{bin_on_device, DeviceBins};
+use super::binning::{bins_of_view, order_view, DepthOrder, DeviceBins};
 use super::camera_grad::camera_grad_matrices;
 use super::math::CAM_LANES;
 use super::project_backward::{project_backward, CAM_GRAD_LANES};
 use super::project_forward::{project_forward, META_LANES, RECORD_LANES};
 use super::rasterize_backward::{rasterize_backward, CasAdd, NativeAdd};
 use super::rasterize_forward::{rasterize_forward, OUT_CHANNELS, TILE};
-use super::readback::read_f32;
+use super::readback::{read_f32, read_u32s};
 use super::sort::{empty_u32, exclusive_scan, retype};
 use super::view_meta::{radii_and_flags, view_counts};
 use crate::backend::SplatGrads;
@@ -139,17 +139,59 @@ impl Inputs {
     }
 }
 
-/// One view after projection and binning.
+/// One view after projection and the first half of the binning.
 struct ViewBins {
     cam_rec: CubeTensor,
     records: CubeTensor,
     meta: CubeTensor,
-    /// The tile lists; `None` when no Gaussian touches a tile.
-    bins: Option<DeviceBins>,
+    depth: DepthOrder,
+    /// Tile intersections of the view (read back with every other view's).
+    intersections: usize,
 }
 
-/// Runs `project_forward` for view `v` and bins the result on the device. Requires `n > 0`.
-fn project_and_bin(inp: &Inputs, v: usize, cfg: &RasterConfig) -> ViewBins {
+impl ViewBins {
+    /// The view's tile lists; `None` when no Gaussian touches a tile.
+    fn bins(&mut self, inp: &Inputs, v: usize) -> Option<DeviceBins> {
+        let depth = std::mem::replace(&mut self.depth, DepthOrder::empty(&inp.means));
+        let cam = &inp.cams[v];
+        bins_of_view(
+            depth,
+            &self.meta,
+            inp.n,
+            self.intersections,
+            cam.tiles_x(),
+            cam.tiles_y(),
+        )
+    }
+}
+
+/// Projects and depth-orders every view, then reads all their intersection totals back at
+/// once (the render call's one readback besides the cameras). Requires `n > 0`.
+fn project_and_bin_all(inp: &Inputs, cfg: &RasterConfig) -> Vec<ViewBins> {
+    let totals = zeros_u32(&inp.means, inp.cams.len());
+    let views: Vec<(CubeTensor, CubeTensor, CubeTensor, DepthOrder)> = (0..inp.cams.len())
+        .map(|v| {
+            let (cam_rec, records, meta) = project(inp, v, cfg);
+            let depth = order_view(&records, &meta, inp.n, &totals, v);
+            (cam_rec, records, meta, depth)
+        })
+        .collect();
+    let totals = read_u32s(totals);
+    views
+        .into_iter()
+        .zip(totals)
+        .map(|((cam_rec, records, meta, depth), m)| ViewBins {
+            cam_rec,
+            records,
+            meta,
+            depth,
+            intersections: m as usize,
+        })
+        .collect()
+}
+
+/// Runs `project_forward` for view `v`: `(camera record, records, meta)`. Requires `n > 0`.
+fn project(inp: &Inputs, v: usize, cfg: &RasterConfig) -> (CubeTensor, CubeTensor, CubeTensor) {
     let cam = &inp.cams[v];
     let client = inp.means.client.clone();
     let cam_rec = upload_f32(&inp.means, camera_record(cam));
@@ -188,13 +230,7 @@ fn project_and_bin(inp: &Inputs, v: usize, cfg: &RasterConfig) -> ViewBins {
         cfg.eps2d as f32,
         cfg.alpha_min as f32,
     );
-    let bins = bin_on_device(&records, &meta, inp.n, cam.tiles_x(), cam.tiles_y());
-    ViewBins {
-        cam_rec,
-        records,
-        meta,
-        bins,
-    }
+    (cam_rec, records, meta)
 }
 
 /// Writes view `v`'s radii and (visible, intersections) into the forward's meta buffers.
@@ -214,7 +250,7 @@ fn write_view_meta(inp: &Inputs, v: usize, vb: &ViewBins, radii: &CubeTensor, co
         v as u32,
     );
     let visible = exclusive_scan(&flags, n, n + 1);
-    let intersections = vb.bins.as_ref().map_or(0, |b| b.intersections);
+    let intersections = vb.intersections;
     view_counts::launch(
         client,
         CubeCount::new_single(),
@@ -253,10 +289,9 @@ pub fn forward(
     let radii = zeros_u32(&inp.means, v_count * n * 2);
     let counts = zeros_u32(&inp.means, v_count * 2);
     if n > 0 {
-        for v in 0..v_count {
-            let vb = project_and_bin(inp, v, cfg);
+        for (v, mut vb) in project_and_bin_all(inp, cfg).into_iter().enumerate() {
             write_view_meta(inp, v, &vb, &radii, &counts);
-            let Some(bins) = vb.bins else {
+            let Some(bins) = vb.bins(inp, v) else {
                 continue;
             };
             let (count, dim) = tile_grid(inp);
@@ -312,80 +347,82 @@ pub fn backward(
     );
     let native = has_float_atomic_add(&inp.means)
         && cfg.grad_accumulation != crate::config::GradAccumulation::CompareAndSwap;
-    for v in 0..inp.cams.len() {
-        if n > 0 {
-            let vb = project_and_bin(inp, v, cfg);
-            if let Some(bins) = vb.bins {
-                let v_proj = zeros(&inp.means, n * RECORD_LANES);
-                let (count, dim) = tile_grid(inp);
-                let launch = if native {
-                    rasterize_backward::launch::<NativeAdd>
-                } else {
-                    rasterize_backward::launch::<CasAdd>
-                };
-                launch(
-                    &inp.means.client,
-                    count,
-                    dim,
-                    vb.records.into_tensor_arg(),
-                    bins.tile_start.into_tensor_arg(),
-                    bins.items.into_tensor_arg(),
-                    grad_image.clone().into_tensor_arg(),
-                    v_proj.clone().into_tensor_arg(),
-                    inp.width,
-                    inp.height,
-                    inp.cams[v].tiles_x(),
-                    view_offset(inp, v),
-                    cfg.alpha_min as f32,
-                    cfg.alpha_clamp.max_alpha() as f32,
-                    cfg.transmittance_min as f32,
-                );
-                let cam_part = empty_device_dtype(
-                    inp.means.client.clone(),
-                    inp.means.device.clone(),
-                    Shape::new([n * CAM_GRAD_LANES]),
-                    DType::F32,
-                );
-                let client = &inp.means.client;
-                let cube_dim = CubeDim::new(client, n);
-                let cube_count = calculate_cube_count_elemwise(client, n, cube_dim);
-                project_backward::launch(
-                    client,
-                    cube_count,
-                    cube_dim,
-                    inp.means.clone().into_tensor_arg(),
-                    inp.quats.clone().into_tensor_arg(),
-                    inp.scales.clone().into_tensor_arg(),
-                    vb.cam_rec.into_tensor_arg(),
-                    vb.meta.into_tensor_arg(),
-                    v_proj.into_tensor_arg(),
-                    g_means.clone().into_tensor_arg(),
-                    g_quats.clone().into_tensor_arg(),
-                    g_scales.clone().into_tensor_arg(),
-                    g_opac.clone().into_tensor_arg(),
-                    g_colors.clone().into_tensor_arg(),
-                    cam_part.clone().into_tensor_arg(),
-                    n as u32,
-                    cfg.near as f32,
-                    cfg.far as f32,
-                    cfg.eps2d as f32,
-                );
-                // Sum the per-Gaussian camera partials and lay them out as the camera
-                // tensors, all on the device.
-                let sums = CubeBackend::float_sum_dim(
-                    CubeBackend::float_reshape(cam_part, Shape::new([n, CAM_GRAD_LANES])),
-                    0,
-                );
-                camera_grad_matrices::launch(
-                    client,
-                    CubeCount::new_single(),
-                    CubeDim::new_1d(1),
-                    into_contiguous(sums).into_tensor_arg(),
-                    g_viewmats.clone().into_tensor_arg(),
-                    g_ks.clone().into_tensor_arg(),
-                    v as u32,
-                );
-            }
+    let views = if n > 0 {
+        project_and_bin_all(inp, cfg)
+    } else {
+        Vec::new()
+    };
+    for (v, mut vb) in views.into_iter().enumerate() {
+        if let Some(bins) = vb.bins(inp, v) {
+            let v_proj = zeros(&inp.means, n * RECORD_LANES);
+            let (count, dim) = tile_grid(inp);
+            let launch = if native {
+                rasterize_backward::launch::<NativeAdd>
+            } else {
+                rasterize_backward::launch::<CasAdd>
+            };
+            launch(
+                &inp.means.client,
+                count,
+                dim,
+                vb.records.into_tensor_arg(),
+                bins.tile_start.into_tensor_arg(),
+                bins.items.into_tensor_arg(),
+                grad_image.clone().into_tensor_arg(),
+                v_proj.clone().into_tensor_arg(),
+                inp.width,
+                inp.height,
+                inp.cams[v].tiles_x(),
+                view_offset(inp, v),
+                cfg.alpha_min as f32,
+                cfg.alpha_clamp.max_alpha() as f32,
+                cfg.transmittance_min as f32,
+            );
+            let cam_part = empty_device_dtype(
+                inp.means.client.clone(),
+                inp.means.device.clone(),
+                Shape::new([n * CAM_GRAD_LANES]),
+                DType::F32,
+            );
+            let client = &inp.means.client;
+            let cube_dim = CubeDim::new(client, n);
+            let cube_count = calculate_cube_count_elemwise(client, n, cube_dim);
+            project_backward::launch(
+                client,
+                cube_count,
+                cube_dim,
+                inp.means.clone().into_tensor_arg(),
+                inp.quats.clone().into_tensor_arg(),
+                inp.scales.clone().into_tensor_arg(),
+                vb.cam_rec.into_tensor_arg(),
+                vb.meta.into_tensor_arg(),
+                v_proj.into_tensor_arg(),
+                g_means.clone().into_tensor_arg(),
+                g_quats.clone().into_tensor_arg(),
+                g_scales.clone().into_tensor_arg(),
+                g_opac.clone().into_tensor_arg(),
+                g_colors.clone().into_tensor_arg(),
+                cam_part.clone().into_tensor_arg(),
+                n as u32,
+                cfg.near as f32,
+                cfg.far as f32,
+                cfg.eps2d as f32,
+            );
+            // Sum the per-Gaussian camera partials and lay them out as the camera
+            // tensors, all on the device.
+            let sums = CubeBackend::float_sum_dim(
+                CubeBackend::float_reshape(cam_part, Shape::new([n, CAM_GRAD_LANES])),
+                0,
+            );
+            camera_grad_matrices::launch(
+                client,
+                CubeCount::new_single(),
+                CubeDim::new_1d(1),
+                into_contiguous(sums).into_tensor_arg(),
+                g_viewmats.clone().into_tensor_arg(),
+                g_ks.clone().into_tensor_arg(),
+                v as u32,
+            );
         }
     }
     let [s_m, s_q, s_s, s_o, s_c, s_v, s_k] = shapes;

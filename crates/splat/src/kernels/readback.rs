@@ -1,9 +1,9 @@
 //! Every device-to-host read of the CubeCL rasterizer goes through here, so they can be
-//! counted: a test holds the pipeline to the cameras once per call and one intersection count
-//! per view.
+//! counted: a test holds a render call (forward or backward) to two reads, its cameras and
+//! its views' intersection totals.
 
 use burn::backend::ops::{FloatTensorOps, IntTensorOps};
-use burn::tensor::{read_sync, Slice};
+use burn::tensor::read_sync;
 use burn_cubecl::tensor::CubeTensor;
 use burn_cubecl::CubeBackend;
 
@@ -13,8 +13,8 @@ thread_local! {
 }
 
 /// How many times this thread's CubeCL renders have read the device back so far. A render
-/// call reads its cameras (two tiny tensors) once, and each view its intersection count
-/// (4 bytes) once per pass; nothing else comes back. Tests count with it; it is per thread
+/// call (each pass) reads its cameras (two tiny tensors) and its views' intersection totals
+/// (4 bytes per view, one read); nothing else comes back. Tests count with it; it is per thread
 /// so parallel tests do not disturb each other.
 pub fn host_readbacks() -> usize {
     READBACKS.with(|c| c.get())
@@ -35,13 +35,15 @@ pub fn read_f32(t: CubeTensor) -> Vec<f32> {
         .unwrap_or_else(|e| panic!("splat: tensor conversion failed: {e:?}"))
 }
 
-/// Reads element `i` of a u32 buffer (the one readback of the binning).
-pub fn read_u32_at(t: &CubeTensor, i: usize) -> u32 {
+/// Reads a whole u32 buffer (the intersection totals of a render call's views).
+pub fn read_u32s(t: CubeTensor) -> Vec<u32> {
     count_readback();
-    let one = CubeBackend::int_slice(t.clone(), &[Slice::from(i..i + 1)]);
-    let data = read_sync(CubeBackend::int_into_data(one))
+    let data = read_sync(CubeBackend::int_into_data(t))
         .unwrap_or_else(|e| panic!("splat: device readback failed: {e:?}"));
     data.convert::<i64>()
         .try_into_vec::<i64>()
-        .unwrap_or_else(|e| panic!("splat: tensor conversion failed: {e:?}"))[0] as u32
+        .unwrap_or_else(|e| panic!("splat: tensor conversion failed: {e:?}"))
+        .into_iter()
+        .map(|x| x as u32)
+        .collect()
 }
