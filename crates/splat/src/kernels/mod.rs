@@ -2,7 +2,8 @@
 //!
 //! Pipeline per view, all on the device: `project_forward` (thread per Gaussian) → tile
 //! binning (`bin_tiles`, driven by `binning`: depth keys → stable radix sort → tile counts →
-//! exclusive scan → one 4-byte readback, the intersection count → (tile, Gaussian) pairs →
+//! exclusive scan, for every view; one readback of all views' intersection totals → (tile,
+//! Gaussian) pairs →
 //! stable radix sort by tile → CSR tile ranges; exactly the order of
 //! [`crate::cpu::bins::bin_tiles`]) → `rasterize_forward` (cube per 16x16 tile, thread per
 //! pixel); radii and counts by `view_meta`. Backward: the same projection and binning, then
