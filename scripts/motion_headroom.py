@@ -10,25 +10,15 @@ motion at the true cameras (true-cams model − true-cams no motion).
 
 Standard library only. Usage: motion_headroom.py LABEL=EVAL_DIR [LABEL=EVAL_DIR ...]
 """
-import gzip
-import json
-import os
 import sys
+
+from motion_keep import read_metrics
 
 METHODS = ["copy_last", "model", "no_motion", "oracle_motion",
            "true_cameras_no_motion", "true_cameras", "true_cameras_oracle_motion"]
 SHORT = ["copy-last", "model", "zeroed", "oracle", "T no-mot", "T model", "T oracle"]
 
 
-
-def read_metrics(folder):
-    """An evaluation's metrics.json, or the slimmed metrics.json.gz kept by motion_bench.sh."""
-    path = os.path.join(folder, "metrics.json")
-    if os.path.exists(path):
-        with open(path) as f:
-            return json.load(f)
-    with gzip.open(path + ".gz", "rt") as f:
-        return json.load(f)
 
 def load(path):
     report = read_metrics(path)

@@ -40,6 +40,17 @@ def slim(report):
     return out
 
 
+def read_metrics(folder):
+    """An evaluation's metrics.json, or the slimmed metrics.json.gz kept by motion_bench.sh
+    (what the table scripts read)."""
+    path = os.path.join(folder, "metrics.json")
+    if os.path.exists(path):
+        with open(path) as f:
+            return json.load(f)
+    with gzip.open(path + ".gz", "rt") as f:
+        return json.load(f)
+
+
 def main():
     if len(sys.argv) != 3:
         sys.exit(__doc__)

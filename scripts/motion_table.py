@@ -20,11 +20,11 @@ paired columns are left out.
 
 Standard library only. Usage: motion_table.py RUNS_DIR "variants" "seeds" "presets"
 """
-import gzip
-import json
 import math
 import os
 import sys
+
+from motion_keep import read_metrics
 
 # Two-sided 95% quantiles of Student's t, df 1..30; larger df interpolate towards 1.96.
 T975 = [12.706, 4.303, 3.182, 2.776, 2.571, 2.447, 2.365, 2.306, 2.262, 2.228, 2.201, 2.179,
@@ -35,15 +35,6 @@ REFERENCE = "cml"
 DERIVED = {"cml-zeroed": "no_motion", "cml-oracle": "oracle_motion"}
 
 
-
-def read_metrics(folder):
-    """An evaluation's metrics.json, or the slimmed metrics.json.gz kept by motion_bench.sh."""
-    path = os.path.join(folder, "metrics.json")
-    if os.path.exists(path):
-        with open(path) as f:
-            return json.load(f)
-    with gzip.open(path + ".gz", "rt") as f:
-        return json.load(f)
 
 def t975(df):
     if df <= 0:

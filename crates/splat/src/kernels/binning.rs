@@ -35,17 +35,6 @@ pub struct DepthOrder {
     offsets: CubeTensor,
 }
 
-impl DepthOrder {
-    /// A placeholder holding no buffers (what is left after the tile lists took a view's).
-    pub fn empty(like: &CubeTensor) -> Self {
-        DepthOrder {
-            keys: empty_u32(like, 0),
-            order: empty_u32(like, 0),
-            offsets: empty_u32(like, 0),
-        }
-    }
-}
-
 /// Depth keys, the stable depth sort, tile counts and their scan for one view's `n > 0`
 /// projected Gaussians; the view's intersection count goes to `totals[view]` on the device.
 pub fn order_view(
@@ -102,7 +91,7 @@ pub fn order_view(
 /// The second half: the `m` (tile, Gaussian) intersections of a view in tile order and its
 /// CSR tile lists over `tiles_x x tiles_y` tiles; `None` when `m` is 0.
 pub fn bins_of_view(
-    depth: DepthOrder,
+    depth: &DepthOrder,
     meta: &CubeTensor,
     n: usize,
     m: usize,
@@ -119,10 +108,10 @@ pub fn bins_of_view(
         client,
         calculate_cube_count_elemwise(client, n, per_gaussian),
         per_gaussian,
-        depth.keys.into_tensor_arg(),
-        depth.order.into_tensor_arg(),
+        depth.keys.clone().into_tensor_arg(),
+        depth.order.clone().into_tensor_arg(),
         meta.clone().into_tensor_arg(),
-        depth.offsets.into_tensor_arg(),
+        depth.offsets.clone().into_tensor_arg(),
         tile_ids.clone().into_tensor_arg(),
         items.clone().into_tensor_arg(),
         n as u32,

@@ -151,11 +151,10 @@ struct ViewBins {
 
 impl ViewBins {
     /// The view's tile lists; `None` when no Gaussian touches a tile.
-    fn bins(&mut self, inp: &Inputs, v: usize) -> Option<DeviceBins> {
-        let depth = std::mem::replace(&mut self.depth, DepthOrder::empty(&inp.means));
+    fn bins(&self, inp: &Inputs, v: usize) -> Option<DeviceBins> {
         let cam = &inp.cams[v];
         bins_of_view(
-            depth,
+            &self.depth,
             &self.meta,
             inp.n,
             self.intersections,
@@ -289,7 +288,7 @@ pub fn forward(
     let radii = zeros_u32(&inp.means, v_count * n * 2);
     let counts = zeros_u32(&inp.means, v_count * 2);
     if n > 0 {
-        for (v, mut vb) in project_and_bin_all(inp, cfg).into_iter().enumerate() {
+        for (v, vb) in project_and_bin_all(inp, cfg).into_iter().enumerate() {
             write_view_meta(inp, v, &vb, &radii, &counts);
             let Some(bins) = vb.bins(inp, v) else {
                 continue;
@@ -352,7 +351,7 @@ pub fn backward(
     } else {
         Vec::new()
     };
-    for (v, mut vb) in views.into_iter().enumerate() {
+    for (v, vb) in views.into_iter().enumerate() {
         if let Some(bins) = vb.bins(inp, v) {
             let v_proj = zeros(&inp.means, n * RECORD_LANES);
             let (count, dim) = tile_grid(inp);
