@@ -64,6 +64,13 @@ pub fn parse_device(spec: &str) -> Result<Device, InputError> {
     }
 }
 
+/// Whether a `--devices` entry names a CUDA device (the only kind Burn 0.22's collectives
+/// run on).
+pub fn is_cuda_spec(spec: &str) -> bool {
+    let spec = spec.trim();
+    spec == "cuda" || spec.starts_with("cuda:")
+}
+
 #[cfg(feature = "cuda")]
 fn cuda(index: usize, what: &str) -> Result<Device, InputError> {
     probe(what, CUDA_HINT, || Device::cuda(index))

@@ -1,9 +1,11 @@
 //! `envision4d train --config FILE [--resume DIR] [--dry-run] [--backend ...]`.
 
-use crate::backend_choice::{parse_device, BackendChoice};
+use crate::backend_choice::{is_cuda_spec, parse_device, BackendChoice};
+use crate::InputError;
 use anyhow::Result;
 use clap::Args;
 use envision4d_train::freeze::ParamSplit;
+use envision4d_train::parallel::GradientReduce;
 use envision4d_train::run::{run as run_training, Observer, RunOptions};
 use envision4d_train::step::build_model;
 use envision4d_train::validate::ValReport;
@@ -40,6 +42,34 @@ pub struct TrainArgs {
     /// `wgpu` (the default GPU), `cuda:0,cuda:1` (NVIDIA GPUs, `--features cuda`), `cpu`. The batch is split evenly; see docs/TRAINING.md.
     #[arg(long, value_delimiter = ',')]
     devices: Vec<String>,
+    /// How `--devices` combine their gradients: `all-reduce` (Burn's collectives, NCCL; CUDA
+    /// devices only), `gather` (summed on the first device; any backend), or `auto`
+    /// (all-reduce when every device is CUDA).
+    #[arg(long, value_enum, default_value_t = ReduceChoice::Auto)]
+    grad_reduce: ReduceChoice,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum ReduceChoice {
+    Auto,
+    Gather,
+    AllReduce,
+}
+
+/// The gradient reduction for the `--devices` entries `specs`.
+fn reduce_for(choice: ReduceChoice, specs: &[String]) -> Result<GradientReduce, InputError> {
+    let all_cuda = !specs.is_empty() && specs.iter().all(|s| is_cuda_spec(s));
+    match choice {
+        ReduceChoice::Gather => Ok(GradientReduce::Gather),
+        ReduceChoice::Auto if all_cuda => Ok(GradientReduce::AllReduce),
+        ReduceChoice::Auto => Ok(GradientReduce::Gather),
+        ReduceChoice::AllReduce if all_cuda => Ok(GradientReduce::AllReduce),
+        ReduceChoice::AllReduce => Err(InputError(format!(
+            "--grad-reduce all-reduce: Burn's collectives run on CUDA devices only, but \
+             --devices is {:?}; use --grad-reduce gather (or auto)",
+            specs.join(",")
+        ))),
+    }
 }
 
 pub fn run(args: TrainArgs) -> Result<()> {
@@ -50,6 +80,7 @@ pub fn run(args: TrainArgs) -> Result<()> {
     if let Some(dir) = &args.out_dir {
         cfg.run.out_dir = dir.clone();
     }
+    let reduce = reduce_for(args.grad_reduce, &args.devices)?;
     let devices = args
         .devices
         .iter()
@@ -72,6 +103,7 @@ pub fn run(args: TrainArgs) -> Result<()> {
             resume: args.resume.clone(),
             stop_at: args.stop_at,
             devices,
+            reduce,
         },
         &mut bar,
     )?;

@@ -98,7 +98,7 @@ fn short_run_then_resume() {
 }
 
 /// Guards clear errors: a config typo names the key, an unknown `--devices` entry names
-/// itself, a missing data root names the path; all exit with code 2.
+/// itself, collectives asked of CPU devices name the fix, a missing data root names the path; all exit with code 2.
 #[test]
 fn bad_input_is_exit_2_naming_the_problem() {
     let tmp = tempfile::tempdir().unwrap();
@@ -125,6 +125,22 @@ fn bad_input_is_exit_2_naming_the_problem() {
     );
     assert_eq!(o.status.code(), Some(2), "{}", text(&o));
     assert!(text(&o).contains("tpu"), "{}", text(&o));
+    // Burn's collectives exist on CUDA only: asking for them on CPU devices is refused
+    // before anything starts (cubecl would panic mid-step).
+    let o = bin(
+        &[
+            "train",
+            "--config",
+            c,
+            "--devices",
+            "cpu,cpu",
+            "--grad-reduce",
+            "all-reduce",
+        ],
+        tmp.path(),
+    );
+    assert_eq!(o.status.code(), Some(2), "{}", text(&o));
+    assert!(text(&o).contains("--grad-reduce gather"), "{}", text(&o));
     let o = bin(&["train", "--config", c], tmp.path());
     assert_eq!(o.status.code(), Some(2), "{}", text(&o));
     assert!(text(&o).contains("no-such-data"), "{}", text(&o));

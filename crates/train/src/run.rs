@@ -9,6 +9,7 @@ use crate::config::{Purpose, Stage, Teacher, TrainConfig};
 use crate::dataset::{open_dataset, split};
 use crate::error::{Result, TrainError};
 use crate::log::JsonlLog;
+use crate::parallel::GradientReduce;
 use crate::step::{StepReport, Trainer};
 use crate::validate::{validate, ValReport};
 use burn::tensor::Device;
@@ -32,6 +33,8 @@ pub struct RunOptions {
     /// Data-parallel devices (`--devices`); empty or one = the run's device only. The batch
     /// is split evenly across them.
     pub devices: Vec<Device>,
+    /// How the devices' gradients are combined (only with several devices).
+    pub reduce: GradientReduce,
 }
 
 /// What the caller shows while a run goes on.
@@ -140,7 +143,7 @@ fn step_on(
     clips: &[HostClip],
     labels: (usize, bool),
     device: &Device,
-    devices: &[Device],
+    (devices, reduce): (&[Device], GradientReduce),
 ) -> Result<StepReport> {
     let (depth_frames, with_gt) = labels;
     if devices.len() > 1 {
@@ -150,7 +153,7 @@ fn step_on(
             .zip(devices)
             .map(|(c, d)| Batch::from_clips(c, depth_frames, with_gt, d))
             .collect::<Result<Vec<_>>>()?;
-        trainer.train_step_parallel(&shards, devices)
+        trainer.train_step_parallel(&shards, devices, reduce)
     } else {
         let batch = Batch::from_clips(clips, depth_frames, with_gt, device)?;
         trainer.train_step(&batch)
@@ -257,7 +260,7 @@ pub fn run(
             &clips,
             (depth_frames, with_gt),
             device,
-            devices,
+            (devices, opts.reduce),
         )?;
         let rate = (trainer.step - first) as f64 / t_start.elapsed().as_secs_f64().max(1e-9);
         obs.step(&report, rate);

@@ -256,7 +256,8 @@ fn backbone_stage_then_teacher() {
     assert!(r.camera.is_finite() && r.camera > 0.0 && r.psnr.is_some());
 }
 
-/// Guards `--devices` data parallelism: two shards of one clip each on two devices (here
+/// Guards `--devices` data parallelism (shards on their own threads, gradients gathered on
+/// the first device): two shards of one clip each on two devices (here
 /// the same CPU twice) give the gradients of one batch of both clips (Adam's first step is
 /// nearly scale-invariant, so the gradients themselves are compared: a missing or doubled
 /// 1/n would show), with clips of different sky fractions (the depth term's pooling).
@@ -291,7 +292,12 @@ fn data_parallel_gradients_equal_single_device_gradients() {
         GradientsParams::from_params(&mut g, &t.model, &t.split.trainable)
     };
     let ParallelGradients::Ready { grads: par, .. } = t
-        .parallel_gradients(&shards, &[device.clone(), device.clone()], 0)
+        .parallel_gradients(
+            &shards,
+            &[device.clone(), device.clone()],
+            0,
+            envision4d_train::parallel::GradientReduce::Gather,
+        )
         .unwrap()
     else {
         panic!("parallel step not finite")
@@ -316,5 +322,21 @@ fn data_parallel_gradients_equal_single_device_gradients() {
         "gradients differ by {} (largest {})",
         cmp.2,
         cmp.3
-    );
+    ); // Burn's collectives: where the backend has them (CUDA) the all-reduced sum equals the
+       // gathered one; where it has none (burn-flex here) the step is an error naming the
+       // all-reduce, not a hang or an abort.
+    match t.parallel_gradients(
+        &shards,
+        &[device.clone(), device.clone()],
+        0,
+        envision4d_train::parallel::GradientReduce::AllReduce,
+    ) {
+        Ok(ParallelGradients::Ready { grads: red, .. }) => {
+            let mut cmp = Cmp(&par, &red, 0.0, 0.0, 0);
+            t.model.visit(&mut cmp);
+            assert!(cmp.2 <= 1e-6 * cmp.3, "all-reduce differs by {}", cmp.2);
+        }
+        Ok(_) => panic!("all-reduce step not finite"),
+        Err(e) => assert!(e.to_string().contains("all-reduce"), "{e}"),
+    }
 }
