@@ -15,7 +15,7 @@ use crate::model::{Envision4d, Heads, Predictions};
 use crate::motion::still_displacements;
 use crate::pose::{pose_encoding_to_extri_intri, FOV};
 use burn::tensor::Tensor;
-use envision4d_splat::{render, Cameras, Gaussians, RasterConfig, RenderError};
+use envision4d_splat::{render_each, Cameras, Gaussians, RasterConfig, RenderError};
 
 /// Smallest FoV (radians, ~3°) a predicted camera may have.
 pub const FOV_MIN_RAD: f64 = 0.05;
@@ -167,6 +167,31 @@ impl Scene {
             raster,
         )
     }
+    /// Renders frames `targets` of every batch element in one rasterizer call; returns
+    /// `[B * F, 3, H, W]`, batch-major (element b's frames at rows `b * F .. (b + 1) * F`).
+    pub fn render_batch(
+        &self,
+        targets: &[usize],
+        exclusion: Exclusion,
+        size: [usize; 2],
+        raster: &RasterConfig,
+    ) -> Result<Tensor<4>> {
+        let bb = &self.pred.backbone;
+        let bsz = bb.extrinsics.dims()[0];
+        let pairs: Vec<(usize, usize)> = (0..bsz)
+            .flat_map(|b| targets.iter().map(move |&j| (b, j)))
+            .collect();
+        render_pairs(
+            &self.adapted,
+            &bb.extrinsics,
+            &bb.intrinsics,
+            &pairs,
+            exclusion,
+            size,
+            raster,
+        )
+        .map(|v| v.rgb)
+    }
 }
 
 /// The Gaussians of batch element `b` at timestamp `j` as the rasterizer takes them.
@@ -220,28 +245,54 @@ pub fn render_views(
     size: [usize; 2],
     raster: &RasterConfig,
 ) -> Result<RenderedViews> {
-    let mut frames = Vec::with_capacity(targets.len());
-    let mut depths = Vec::with_capacity(targets.len());
-    for &j in targets {
-        let g = gaussians_for(adapted, b, j, exclusion);
-        let cams = Cameras {
-            viewmats: extrinsics
-                .clone()
-                .slice([b..b + 1, j..j + 1, 0..4, 0..4])
-                .reshape([1, 4, 4]),
-            ks: intrinsics
-                .clone()
-                .slice([b..b + 1, j..j + 1, 0..3, 0..3])
-                .reshape([1, 3, 3]),
-            width: size[1] as u32,
-            height: size[0] as u32,
-        };
-        let out = render(&g, &cams, raster)?;
-        frames.push(out.rgb.permute([0, 3, 1, 2]));
-        depths.push(out.depth);
-    }
+    let pairs: Vec<(usize, usize)> = targets.iter().map(|&j| (b, j)).collect();
+    render_pairs(
+        adapted, extrinsics, intrinsics, &pairs, exclusion, size, raster,
+    )
+}
+
+/// Renders view `(b, j)` of `pairs` (batch element b's Gaussians at time j, through its
+/// camera j) for every pair, all in one rasterizer call: each view has its own Gaussians
+/// (`render_each`), so the device is read back once for all of them, not once per view.
+/// Returns `[V, 3, H, W]` colour and `[V, H, W]` depth in `pairs` order.
+#[allow(clippy::too_many_arguments)]
+pub fn render_pairs(
+    adapted: &AdaptedGaussians,
+    extrinsics: &Tensor<4>,
+    intrinsics: &Tensor<4>,
+    pairs: &[(usize, usize)],
+    exclusion: Exclusion,
+    size: [usize; 2],
+    raster: &RasterConfig,
+) -> Result<RenderedViews> {
+    let v = pairs.len();
+    let sets: Vec<Gaussians> = pairs
+        .iter()
+        .map(|&(b, j)| gaussians_for(adapted, b, j, exclusion))
+        .collect();
+    let pick = |t: &Tensor<4>, k: usize| {
+        Tensor::cat(
+            pairs
+                .iter()
+                .map(|&(b, j)| {
+                    t.clone()
+                        .slice([b..b + 1, j..j + 1, 0..k, 0..k])
+                        .reshape([1, k, k])
+                })
+                .collect(),
+            0,
+        )
+    };
+    let cams = Cameras {
+        viewmats: pick(extrinsics, 4),
+        ks: pick(intrinsics, 3),
+        width: size[1] as u32,
+        height: size[0] as u32,
+    };
+    let out = render_each(&sets, &cams, raster)?;
+    debug_assert_eq!(out.rgb.dims()[0], v);
     Ok(RenderedViews {
-        rgb: Tensor::cat(frames, 0),
-        depth: Tensor::cat(depths, 0),
+        rgb: out.rgb.permute([0, 3, 1, 2]),
+        depth: out.depth,
     })
 }

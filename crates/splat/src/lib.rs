@@ -26,5 +26,8 @@ pub use config::{AlphaClamp, GradAccumulation, RasterConfig, TILE_SIZE};
 pub mod backend;
 pub mod render;
 
-pub use render::{render, Cameras, Gaussians, RenderError, RenderMeta, RenderOutput};
+pub use render::{render, render_each, Cameras, Gaussians, RenderError, RenderMeta, RenderOutput};
 pub mod testkit;
+pub mod views;
+
+pub use views::ViewSets;

@@ -7,6 +7,7 @@
 use crate::backend::SplatOps;
 use crate::camera::{Camera, CameraError};
 use crate::config::RasterConfig;
+use crate::views::ViewSets;
 use burn::backend::Dispatch;
 use burn::tensor::{s, Device, Int, Tensor, TensorData};
 
@@ -93,7 +94,8 @@ impl Cameras {
 /// Non-differentiable by-products of a render (gsplat's `meta`).
 #[derive(Debug, Clone)]
 pub struct RenderMeta {
-    /// `[V, N, 2]` screen-space radii in pixels; 0 = culled in that view.
+    /// `[V, N, 2]` screen-space radii in pixels; 0 = culled in that view. From
+    /// [`render_each`], `[V, max N_v, 2]`, row i of view v being `gaussians[v]`'s Gaussian i.
     pub radii: Tensor<3, Int>,
     /// `[V, 2]` = (visible Gaussians, Gaussian-tile intersections) per view.
     pub counts: Tensor<2, Int>,
@@ -157,6 +159,16 @@ pub fn validate(
     cameras: &Cameras,
     config: &RasterConfig,
 ) -> Result<(), RenderError> {
+    validate_sets(gaussians, cameras, &ViewSets::Shared, config)
+}
+
+/// [`validate`] for Gaussians split into per-view sets.
+fn validate_sets(
+    gaussians: &Gaussians,
+    cameras: &Cameras,
+    sets: &ViewSets,
+    config: &RasterConfig,
+) -> Result<(), RenderError> {
     config.validate().map_err(RenderError::Config)?;
     let n = gaussians.means.dims()[0];
     check_shape("means", &gaussians.means.dims(), &[Some(n), Some(3)])?;
@@ -171,6 +183,7 @@ pub fn validate(
         &[Some(v), Some(4), Some(4)],
     )?;
     check_shape("ks", &cameras.ks.dims(), &[Some(v), Some(3), Some(3)])?;
+    sets.validate(v, n).map_err(RenderError::Config)?;
     let vm: Vec<f64> = cameras
         .viewmats
         .to_data()
@@ -202,7 +215,47 @@ pub fn render(
     cameras: &Cameras,
     config: &RasterConfig,
 ) -> Result<RenderOutput, RenderError> {
-    validate(gaussians, cameras, config)?;
+    render_sets(gaussians, cameras, ViewSets::Shared, config)
+}
+
+/// Renders camera v of `cameras` from `gaussians[v]` alone (a different scene per view, e.g.
+/// one set of time-conditioned Gaussians per target frame), all views in one call: one host
+/// readback of the tile-intersection totals for all of them instead of one per view.
+/// Equal to rendering each view on its own; differentiable like [`render`].
+pub fn render_each(
+    gaussians: &[Gaussians],
+    cameras: &Cameras,
+    config: &RasterConfig,
+) -> Result<RenderOutput, RenderError> {
+    let v = cameras.viewmats.dims()[0];
+    if gaussians.len() != v {
+        return Err(RenderError::Config(format!(
+            "render_each: {} Gaussian sets for {v} cameras",
+            gaussians.len()
+        )));
+    }
+    if v == 0 {
+        return Err(RenderError::Config("render_each: no camera".into()));
+    }
+    let rows = gaussians.iter().map(|g| g.opacities.dims()[0]).collect();
+    let field = |f: fn(&Gaussians) -> Tensor<2>| Tensor::cat(gaussians.iter().map(f).collect(), 0);
+    let stacked = Gaussians {
+        means: field(|g| g.means.clone()),
+        quats: field(|g| g.quats.clone()),
+        scales: field(|g| g.scales.clone()),
+        opacities: Tensor::cat(gaussians.iter().map(|g| g.opacities.clone()).collect(), 0),
+        colors: field(|g| g.colors.clone()),
+    };
+    render_sets(&stacked, cameras, ViewSets::Stacked(rows), config)
+}
+
+fn render_sets(
+    gaussians: &Gaussians,
+    cameras: &Cameras,
+    sets: ViewSets,
+    config: &RasterConfig,
+) -> Result<RenderOutput, RenderError> {
+    validate_sets(gaussians, cameras, &sets, config)?;
     let g = gaussians.clone();
     let c = cameras.clone();
     let (image, radii, counts) = <Dispatch as SplatOps>::splat_forward(
@@ -215,6 +268,7 @@ pub fn render(
         c.ks.into_dispatch(),
         c.width,
         c.height,
+        sets,
         *config,
     );
     let image: Tensor<4> = Tensor::from_dispatch(image);

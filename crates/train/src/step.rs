@@ -266,8 +266,11 @@ impl Trainer {
         let wt = Tensor::<1>::from_floats(wt.as_slice(), &device);
         let mut rgb_sum = Tensor::<1>::zeros([1], &device);
         let mut mse_sum = Tensor::<1>::zeros([1], &device);
+        // Every element's targets in one rasterizer call: one host readback for all views.
+        let all = scene.render_batch(&plan.targets, plan.exclusion, [h, w], &self.raster)?;
+        let f = plan.targets.len();
         for b in 0..bsz {
-            let rendered = scene.render(b, &plan.targets, plan.exclusion, [h, w], &self.raster)?;
+            let rendered = all.clone().slice([b * f..(b + 1) * f, 0..3, 0..h, 0..w]);
             let gt = batch
                 .images
                 .clone()

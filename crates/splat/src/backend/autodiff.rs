@@ -7,6 +7,7 @@
 
 use super::{SplatGrads, SplatOps};
 use crate::config::RasterConfig;
+use crate::views::ViewSets;
 use burn::backend::autodiff::checkpoint::{base::Checkpointer, strategy::CheckpointStrategy};
 use burn::backend::autodiff::grads::Gradients;
 use burn::backend::autodiff::ops::{Backward, Ops, OpsKind};
@@ -22,6 +23,7 @@ struct RenderState<B: SplatOps> {
     inputs: [FloatTensor<B>; 7],
     width: u32,
     height: u32,
+    sets: ViewSets,
     config: RasterConfig,
 }
 
@@ -39,10 +41,11 @@ impl<B: SplatOps> Backward<B, 7> for RenderBackward {
             inputs,
             width,
             height,
+            sets,
             config,
         } = ops.state;
         let [m, q, s, o, c, v, k] = inputs;
-        let g = B::splat_backward(m, q, s, o, c, v, k, grad_image, width, height, config);
+        let g = B::splat_backward(m, q, s, o, c, v, k, grad_image, width, height, sets, config);
         for (parent, grad) in ops.parents.into_iter().zip([
             g.means,
             g.quats,
@@ -70,13 +73,15 @@ impl<B: SplatOps, C: CheckpointStrategy> SplatOps for Autodiff<B, C> {
         ks: FloatTensor<Self>,
         width: u32,
         height: u32,
+        sets: ViewSets,
         config: RasterConfig,
     ) -> (FloatTensor<Self>, IntTensor<Self>, IntTensor<Self>) {
         let tensors = [means, quats, scales, opacities, colors, viewmats, ks];
         let nodes = tensors.each_ref().map(|t| t.node());
         let inner = tensors.map(|t| t.into_primitive());
         let [m, q, s, o, c, v, k] = inner.clone();
-        let (image, radii, counts) = B::splat_forward(m, q, s, o, c, v, k, width, height, config);
+        let (image, radii, counts) =
+            B::splat_forward(m, q, s, o, c, v, k, width, height, sets.clone(), config);
         let image = match RenderBackward
             .prepare::<C>(nodes)
             .compute_bound()
@@ -87,6 +92,7 @@ impl<B: SplatOps, C: CheckpointStrategy> SplatOps for Autodiff<B, C> {
                     inputs: inner,
                     width,
                     height,
+                    sets,
                     config,
                 },
                 image,
@@ -108,6 +114,7 @@ impl<B: SplatOps, C: CheckpointStrategy> SplatOps for Autodiff<B, C> {
         grad_image: FloatTensor<Self>,
         width: u32,
         height: u32,
+        sets: ViewSets,
         config: RasterConfig,
     ) -> SplatGrads<Self> {
         let g = B::splat_backward(
@@ -121,6 +128,7 @@ impl<B: SplatOps, C: CheckpointStrategy> SplatOps for Autodiff<B, C> {
             grad_image.into_primitive(),
             width,
             height,
+            sets,
             config,
         );
         let lift = <Self as AutodiffBackend>::from_inner;

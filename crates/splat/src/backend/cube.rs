@@ -6,6 +6,7 @@ use super::{host, host_sort, SplatGrads, SplatOps};
 use crate::config::RasterConfig;
 use crate::kernels::launch::{self, Inputs};
 use crate::kernels::sort;
+use crate::views::ViewSets;
 use burn::backend::tensor::{FloatTensor, IntTensor};
 use burn::backend::TensorMetadata;
 use burn::tensor::DType;
@@ -24,13 +25,14 @@ impl SplatOps for CubeBackend {
         ks: FloatTensor<Self>,
         width: u32,
         height: u32,
+        sets: ViewSets,
         config: RasterConfig,
     ) -> (FloatTensor<Self>, IntTensor<Self>, IntTensor<Self>) {
         let inputs = [means, quats, scales, opacities, colors, viewmats, ks];
         if inputs.iter().any(|t| t.dtype() != DType::F32) {
-            return host::forward::<Self>(inputs, width, height, &config);
+            return host::forward::<Self>(inputs, width, height, &sets, &config);
         }
-        launch::forward(&Inputs::new(inputs, width, height), &config)
+        launch::forward(&Inputs::new(inputs, width, height, &sets), &config)
     }
 
     fn splat_backward(
@@ -44,15 +46,16 @@ impl SplatOps for CubeBackend {
         grad_image: FloatTensor<Self>,
         width: u32,
         height: u32,
+        sets: ViewSets,
         config: RasterConfig,
     ) -> SplatGrads<Self> {
         let inputs = [means, quats, scales, opacities, colors, viewmats, ks];
         if inputs.iter().any(|t| t.dtype() != DType::F32) || grad_image.dtype() != DType::F32 {
-            return host::backward::<Self>(inputs, grad_image, width, height, &config);
+            return host::backward::<Self>(inputs, grad_image, width, height, &sets, &config);
         }
         let shapes = inputs.each_ref().map(|t| t.shape());
         launch::backward(
-            &Inputs::new(inputs, width, height),
+            &Inputs::new(inputs, width, height, &sets),
             grad_image,
             shapes,
             &config,

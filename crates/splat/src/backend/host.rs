@@ -7,6 +7,7 @@ use crate::camera::Camera;
 use crate::config::RasterConfig;
 use crate::cpu::{self, project::Scene, raster::OUT_CHANNELS};
 use crate::real::Real;
+use crate::views::ViewSets;
 use burn::backend::tensor::{FloatTensor, IntTensor};
 use burn::backend::{Backend, TensorMetadata};
 use burn::tensor::{read_sync, DType, Element, TensorData};
@@ -87,12 +88,13 @@ pub fn forward<B: Backend>(
     inputs: [FloatTensor<B>; 7],
     width: u32,
     height: u32,
+    sets: &ViewSets,
     cfg: &RasterConfig,
 ) -> (FloatTensor<B>, IntTensor<B>, IntTensor<B>) {
     if inputs[0].dtype() == DType::F64 {
-        forward_in::<B, f64>(inputs, width, height, cfg)
+        forward_in::<B, f64>(inputs, width, height, sets, cfg)
     } else {
-        forward_in::<B, f32>(inputs, width, height, cfg)
+        forward_in::<B, f32>(inputs, width, height, sets, cfg)
     }
 }
 
@@ -100,15 +102,16 @@ fn forward_in<B: Backend, F: Real + Element>(
     inputs: [FloatTensor<B>; 7],
     width: u32,
     height: u32,
+    sets: &ViewSets,
     cfg: &RasterConfig,
 ) -> (FloatTensor<B>, IntTensor<B>, IntTensor<B>) {
     let host = HostInputs::<F, B::Device>::new::<B>(inputs);
     let (device, dtype) = (host.device.clone(), host.dtype);
     let scene = host.scene();
     let cams = host.cameras(width, height);
-    let out = cpu::render_forward(&scene, &cams, cfg);
+    let out = cpu::render_forward_sets(&scene, &cams, sets, cfg);
     let v = cams.len();
-    let n = scene.len();
+    let n = sets.radii_rows(scene.len());
     let image = from_host::<B, F>(
         out.image,
         vec![v, height as usize, width as usize, OUT_CHANNELS],
@@ -131,12 +134,13 @@ pub fn backward<B: Backend>(
     grad_image: FloatTensor<B>,
     width: u32,
     height: u32,
+    sets: &ViewSets,
     cfg: &RasterConfig,
 ) -> SplatGrads<B> {
     if inputs[0].dtype() == DType::F64 {
-        backward_in::<B, f64>(inputs, grad_image, width, height, cfg)
+        backward_in::<B, f64>(inputs, grad_image, width, height, sets, cfg)
     } else {
-        backward_in::<B, f32>(inputs, grad_image, width, height, cfg)
+        backward_in::<B, f32>(inputs, grad_image, width, height, sets, cfg)
     }
 }
 
@@ -145,13 +149,14 @@ fn backward_in<B: Backend, F: Real + Element>(
     grad_image: FloatTensor<B>,
     width: u32,
     height: u32,
+    sets: &ViewSets,
     cfg: &RasterConfig,
 ) -> SplatGrads<B> {
     let host = HostInputs::<F, B::Device>::new::<B>(inputs);
     let grad = to_host::<B, F>(grad_image);
     let scene = host.scene();
     let cams = host.cameras(width, height);
-    let g = cpu::render_backward(&scene, &cams, cfg, &grad);
+    let g = cpu::render_backward_sets(&scene, &cams, sets, cfg, &grad);
     let t = |v: Vec<F>, k: usize| {
         from_host::<B, F>(v, host.shapes[k].clone(), &host.device, host.dtype)
     };

@@ -13,6 +13,7 @@ mod host;
 mod host_sort;
 
 use crate::config::RasterConfig;
+use crate::views::ViewSets;
 use burn::backend::tensor::{FloatTensor, IntTensor};
 use burn::backend::Backend;
 use burn::backend::{backend_extension, ExtensionType};
@@ -34,12 +35,13 @@ pub struct SplatGrads<B: Backend> {
 /// The rasterizer as a Burn backend operation.
 ///
 /// Shapes: means `[N,3]`, quats `[N,4]` (w,x,y,z), scales `[N,3]`, opacities `[N]`,
-/// colors `[N,3]`, viewmats `[V,4,4]` (world-to-camera, OpenCV axes), ks `[V,3,3]`.
-/// Callers validate shapes and cameras first (see [`crate::render`]).
+/// colors `[N,3]`, viewmats `[V,4,4]` (world-to-camera, OpenCV axes), ks `[V,3,3]`; `sets`
+/// says which of the N rows each view renders. Callers validate shapes, sets and cameras
+/// first (see [`crate::render`]).
 #[backend_extension(Cube, Flex, Autodiff)]
 pub trait SplatOps: Backend {
-    /// Returns `(image [V,H,W,5], radii [V,N,2] (int), counts [V,2] (int: visible Gaussians,
-    /// tile intersections))`.
+    /// Returns `(image [V,H,W,5], radii [V,R,2] (int; R = [`ViewSets::radii_rows`]), counts
+    /// [V,2] (int: visible Gaussians, tile intersections))`.
     #[allow(clippy::too_many_arguments)]
     fn splat_forward(
         means: FloatTensor<Self>,
@@ -51,12 +53,14 @@ pub trait SplatOps: Backend {
         ks: FloatTensor<Self>,
         width: u32,
         height: u32,
+        sets: ViewSets,
         config: RasterConfig,
     ) -> (FloatTensor<Self>, IntTensor<Self>, IntTensor<Self>) {
         host::forward::<Self>(
             [means, quats, scales, opacities, colors, viewmats, ks],
             width,
             height,
+            &sets,
             &config,
         )
     }
@@ -74,6 +78,7 @@ pub trait SplatOps: Backend {
         grad_image: FloatTensor<Self>,
         width: u32,
         height: u32,
+        sets: ViewSets,
         config: RasterConfig,
     ) -> SplatGrads<Self> {
         host::backward::<Self>(
@@ -81,6 +86,7 @@ pub trait SplatOps: Backend {
             grad_image,
             width,
             height,
+            &sets,
             &config,
         )
     }

@@ -11,6 +11,7 @@ pub mod raster;
 use crate::camera::{Camera, CameraGrad};
 use crate::config::RasterConfig;
 use crate::real::Real;
+use crate::views::ViewSets;
 use bins::{bin_tiles, TileBins};
 use project::{project_one, project_one_vjp, Projected, Scene, PROJECTED_GRAD_LANES};
 use raster::{
@@ -27,7 +28,8 @@ const GAUSSIANS_PER_TASK: usize = 4096;
 pub struct ForwardOutput<F> {
     /// `[V, H, W, 5]` = (R, G, B, accumulated depth, alpha), background not applied.
     pub image: Vec<F>,
-    /// `[V, N, 2]` footprint radii in pixels (0 = culled), as gsplat's `radii`.
+    /// `[V, R, 2]` footprint radii in pixels (0 = culled), as gsplat's `radii`; R is
+    /// [`ViewSets::radii_rows`].
     pub radii: Vec<i32>,
     /// Gaussians that survived culling, per view.
     pub visible: Vec<usize>,
@@ -85,21 +87,33 @@ pub fn render_forward<F: Real>(
     cams: &[Camera<F>],
     cfg: &RasterConfig,
 ) -> ForwardOutput<F> {
+    render_forward_sets(scene, cams, &ViewSets::Shared, cfg)
+}
+
+/// [`render_forward`] where view v renders the rows `sets` gives it.
+pub fn render_forward_sets<F: Real>(
+    scene: &Scene<F>,
+    cams: &[Camera<F>],
+    sets: &ViewSets,
+    cfg: &RasterConfig,
+) -> ForwardOutput<F> {
     let n = scene.len();
+    let r = sets.radii_rows(n);
     let mut out = ForwardOutput {
         image: Vec::new(),
-        radii: vec![0; cams.len() * n * 2],
+        radii: vec![0; cams.len() * r * 2],
         visible: Vec::new(),
         intersections: Vec::new(),
     };
     for (v, cam) in cams.iter().enumerate() {
         let (w, h) = (cam.width as usize, cam.height as usize);
         let mut image = vec![F::zero(); w * h * OUT_CHANNELS];
-        let state = prepare_view(scene, cam, cfg);
+        let (first, rows) = sets.range(v, n);
+        let state = prepare_view(&scene.rows(first, rows), cam, cfg);
         for (i, p) in state.projected.iter().enumerate() {
             if let Some(p) = p {
-                out.radii[(v * n + i) * 2] = p.radius[0];
-                out.radii[(v * n + i) * 2 + 1] = p.radius[1];
+                out.radii[(v * r + i) * 2] = p.radius[0];
+                out.radii[(v * r + i) * 2 + 1] = p.radius[1];
             }
         }
         out.visible.push(state.bins.visible);
@@ -149,6 +163,17 @@ pub fn render_backward<F: Real>(
     cfg: &RasterConfig,
     grad_image: &[F],
 ) -> BackwardOutput<F> {
+    render_backward_sets(scene, cams, &ViewSets::Shared, cfg, grad_image)
+}
+
+/// [`render_backward`] where view v renders the rows `sets` gives it.
+pub fn render_backward_sets<F: Real>(
+    scene: &Scene<F>,
+    cams: &[Camera<F>],
+    sets: &ViewSets,
+    cfg: &RasterConfig,
+    grad_image: &[F],
+) -> BackwardOutput<F> {
     let n = scene.len();
     let mut g = BackwardOutput {
         means: vec![F::zero(); n * 3],
@@ -161,10 +186,13 @@ pub fn render_backward<F: Real>(
     };
     let th = Thresholds::new(cfg);
     let mut offset = 0usize;
-    for cam in cams {
+    for (v, cam) in cams.iter().enumerate() {
         let (w, h) = (cam.width as usize, cam.height as usize);
         let view_grad = &grad_image[offset..offset + w * h * OUT_CHANNELS];
         offset += w * h * OUT_CHANNELS;
+        let (first, rows) = sets.range(v, n);
+        let view_scene = scene.rows(first, rows);
+        let scene = &view_scene;
         let state = prepare_view(scene, cam, cfg);
         let tiles_x = cam.tiles_x();
         // Per-tile partial gradients, reduced below in tile order for determinism.
@@ -193,7 +221,7 @@ pub fn render_backward<F: Real>(
                 (t, lanes)
             })
             .collect();
-        let mut lanes = vec![[F::zero(); PROJECTED_GRAD_LANES]; n];
+        let mut lanes = vec![[F::zero(); PROJECTED_GRAD_LANES]; rows];
         for (t, tile_lanes) in partials {
             for (&i, l) in state.bins.tile(t).iter().zip(tile_lanes.iter()) {
                 for (acc, v) in lanes[i as usize].iter_mut().zip(l.iter()) {
@@ -204,13 +232,13 @@ pub fn render_backward<F: Real>(
         let lim = cam.frustum_limits();
         // Per-Gaussian projection backward in fixed chunks; each chunk also returns its share of
         // the camera gradient, summed in chunk order.
-        let cam_partials: Vec<CameraGrad<F>> = g
-            .means
+        let end = first + rows;
+        let cam_partials: Vec<CameraGrad<F>> = g.means[3 * first..3 * end]
             .par_chunks_mut(3 * GAUSSIANS_PER_TASK)
-            .zip(g.quats.par_chunks_mut(4 * GAUSSIANS_PER_TASK))
-            .zip(g.scales.par_chunks_mut(3 * GAUSSIANS_PER_TASK))
-            .zip(g.opacities.par_chunks_mut(GAUSSIANS_PER_TASK))
-            .zip(g.colors.par_chunks_mut(3 * GAUSSIANS_PER_TASK))
+            .zip(g.quats[4 * first..4 * end].par_chunks_mut(4 * GAUSSIANS_PER_TASK))
+            .zip(g.scales[3 * first..3 * end].par_chunks_mut(3 * GAUSSIANS_PER_TASK))
+            .zip(g.opacities[first..end].par_chunks_mut(GAUSSIANS_PER_TASK))
+            .zip(g.colors[3 * first..3 * end].par_chunks_mut(3 * GAUSSIANS_PER_TASK))
             .enumerate()
             .map(|(chunk, ((((gm, gq), gs), go), gc))| {
                 let mut cg = CameraGrad::zero();

@@ -29,6 +29,18 @@ impl<'a, F: Real> Scene<'a, F> {
         self.opacities.len()
     }
 
+    /// Rows `first .. first + n` as a scene of their own (one view's set of stacked
+    /// Gaussians).
+    pub fn rows(&self, first: usize, n: usize) -> Scene<'a, F> {
+        Scene {
+            means: &self.means[3 * first..3 * (first + n)],
+            quats: &self.quats[4 * first..4 * (first + n)],
+            scales: &self.scales[3 * first..3 * (first + n)],
+            opacities: &self.opacities[first..first + n],
+            colors: &self.colors[3 * first..3 * (first + n)],
+        }
+    }
+
     pub fn is_empty(&self) -> bool {
         self.opacities.is_empty()
     }

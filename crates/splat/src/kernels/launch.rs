@@ -18,6 +18,7 @@ use super::view_meta::{radii_and_flags, view_counts};
 use crate::backend::SplatGrads;
 use crate::camera::Camera;
 use crate::config::RasterConfig;
+use crate::views::ViewSets;
 use burn::backend::ops::{FloatTensorOps, IntTensorOps};
 use burn::backend::tensor::{FloatTensor, IntTensor};
 use burn::backend::TensorMetadata;
@@ -100,14 +101,19 @@ pub struct Inputs {
     pub opacities: CubeTensor,
     pub colors: CubeTensor,
     pub cams: Vec<Camera<f32>>,
+    /// Input rows (all views' Gaussians).
     pub n: usize,
+    /// `(first row, rows)` of every view's Gaussians.
+    pub ranges: Vec<(usize, usize)>,
+    /// Row width of the radii output ([`ViewSets::radii_rows`]).
+    pub radii_rows: usize,
     pub width: u32,
     pub height: u32,
 }
 
 impl Inputs {
     /// Flattens the Gaussian tensors and reads the (tiny) camera tensors back to the host.
-    pub fn new(t: [FloatTensor<CubeBackend>; 7], width: u32, height: u32) -> Self {
+    pub fn new(t: [FloatTensor<CubeBackend>; 7], width: u32, height: u32, sets: &ViewSets) -> Self {
         let n = t[0].shape()[0];
         let [means, quats, scales, opacities, colors, viewmats, ks] = t.map(flat);
         let (vm, k) = (read_f32(viewmats), read_f32(ks));
@@ -124,8 +130,10 @@ impl Inputs {
                     panic!("splat: invalid camera reached the kernel (validate first): {e}")
                 })
             })
-            .collect();
+            .collect::<Vec<_>>();
         Inputs {
+            ranges: sets.ranges(cams.len(), n),
+            radii_rows: sets.radii_rows(n),
             means,
             quats,
             scales,
@@ -141,6 +149,9 @@ impl Inputs {
 
 /// One view after projection and the first half of the binning.
 struct ViewBins {
+    /// The view's Gaussians: `rows` input rows from `first`.
+    first: usize,
+    rows: usize,
     cam_rec: CubeTensor,
     records: CubeTensor,
     meta: CubeTensor,
@@ -156,7 +167,7 @@ impl ViewBins {
         bins_of_view(
             &self.depth,
             &self.meta,
-            inp.n,
+            self.rows,
             self.intersections,
             cam.tiles_x(),
             cam.tiles_y(),
@@ -165,50 +176,63 @@ impl ViewBins {
 }
 
 /// Projects and depth-orders every view, then reads all their intersection totals back at
-/// once (the render call's one readback besides the cameras). Requires `n > 0`.
-fn project_and_bin_all(inp: &Inputs, cfg: &RasterConfig) -> Vec<ViewBins> {
+/// once (the render call's one readback besides the cameras). `None` for a view without
+/// Gaussians.
+fn project_and_bin_all(inp: &Inputs, cfg: &RasterConfig) -> Vec<Option<ViewBins>> {
     let totals = zeros_u32(&inp.means, inp.cams.len());
-    let views: Vec<(CubeTensor, CubeTensor, CubeTensor, DepthOrder)> = (0..inp.cams.len())
+    let views: Vec<_> = (0..inp.cams.len())
         .map(|v| {
-            let (cam_rec, records, meta) = project(inp, v, cfg);
-            let depth = order_view(&records, &meta, inp.n, &totals, v);
-            (cam_rec, records, meta, depth)
+            let (first, rows) = inp.ranges[v];
+            (rows > 0).then(|| {
+                let (cam_rec, records, meta) = project(inp, v, cfg);
+                let depth = order_view(&records, &meta, rows, &totals, v);
+                (first, rows, cam_rec, records, meta, depth)
+            })
         })
         .collect();
+    if views.iter().all(Option::is_none) {
+        return views.into_iter().map(|_| None).collect();
+    }
     let totals = read_u32s(totals);
     views
         .into_iter()
         .zip(totals)
-        .map(|((cam_rec, records, meta, depth), m)| ViewBins {
-            cam_rec,
-            records,
-            meta,
-            depth,
-            intersections: m as usize,
+        .map(|(view, m)| {
+            view.map(|(first, rows, cam_rec, records, meta, depth)| ViewBins {
+                first,
+                rows,
+                cam_rec,
+                records,
+                meta,
+                depth,
+                intersections: m as usize,
+            })
         })
         .collect()
 }
 
-/// Runs `project_forward` for view `v`: `(camera record, records, meta)`. Requires `n > 0`.
+/// Runs `project_forward` for view `v`: `(camera record, records, meta)`. Requires the view
+/// to have Gaussians.
 fn project(inp: &Inputs, v: usize, cfg: &RasterConfig) -> (CubeTensor, CubeTensor, CubeTensor) {
     let cam = &inp.cams[v];
+    let (first, n) = inp.ranges[v];
     let client = inp.means.client.clone();
     let cam_rec = upload_f32(&inp.means, camera_record(cam));
-    check_binding(&inp.means, "projected Gaussian", inp.n * RECORD_LANES);
+    check_binding(&inp.means, "projected Gaussian", n * RECORD_LANES);
     let records = empty_device_dtype(
         client.clone(),
         inp.means.device.clone(),
-        Shape::new([inp.n * RECORD_LANES]),
+        Shape::new([n * RECORD_LANES]),
         DType::F32,
     );
     let meta = empty_device_dtype(
         client.clone(),
         inp.means.device.clone(),
-        Shape::new([inp.n * META_LANES]),
+        Shape::new([n * META_LANES]),
         DType::F32,
     );
-    let cube_dim = CubeDim::new(&client, inp.n);
-    let cube_count = calculate_cube_count_elemwise(&client, inp.n, cube_dim);
+    let cube_dim = CubeDim::new(&client, n);
+    let cube_count = calculate_cube_count_elemwise(&client, n, cube_dim);
     project_forward::launch(
         &client,
         cube_count,
@@ -221,7 +245,8 @@ fn project(inp: &Inputs, v: usize, cfg: &RasterConfig) -> (CubeTensor, CubeTenso
         cam_rec.clone().into_tensor_arg(),
         records.clone().into_tensor_arg(),
         meta.clone().into_tensor_arg(),
-        inp.n as u32,
+        first as u32,
+        n as u32,
         inp.width,
         inp.height,
         cfg.near as f32,
@@ -235,7 +260,7 @@ fn project(inp: &Inputs, v: usize, cfg: &RasterConfig) -> (CubeTensor, CubeTenso
 /// Writes view `v`'s radii and (visible, intersections) into the forward's meta buffers.
 fn write_view_meta(inp: &Inputs, v: usize, vb: &ViewBins, radii: &CubeTensor, counts: &CubeTensor) {
     let client = &inp.means.client;
-    let n = inp.n;
+    let n = vb.rows;
     let flags = empty_u32(&inp.means, n);
     let dim = CubeDim::new(client, n);
     radii_and_flags::launch(
@@ -246,6 +271,7 @@ fn write_view_meta(inp: &Inputs, v: usize, vb: &ViewBins, radii: &CubeTensor, co
         radii.clone().into_tensor_arg(),
         flags.clone().into_tensor_arg(),
         n as u32,
+        inp.radii_rows as u32,
         v as u32,
     );
     let visible = exclusive_scan(&flags, n, n + 1);
@@ -272,7 +298,7 @@ fn view_offset(inp: &Inputs, v: usize) -> u32 {
     u32::try_from(off).expect("splat: image batch too large for 32-bit offsets")
 }
 
-/// `splat_forward` on the GPU: `(image [V,H,W,5], radii [V,N,2], counts [V,2])`.
+/// `splat_forward` on the GPU: `(image [V,H,W,5], radii [V,R,2], counts [V,2])`.
 pub fn forward(
     inp: &Inputs,
     cfg: &RasterConfig,
@@ -281,42 +307,43 @@ pub fn forward(
     IntTensor<CubeBackend>,
     IntTensor<CubeBackend>,
 ) {
-    let (v_count, n) = (inp.cams.len(), inp.n);
+    let (v_count, r) = (inp.cams.len(), inp.radii_rows);
     let (w, h) = (inp.width as usize, inp.height as usize);
     let image = zeros(&inp.means, v_count * h * w * OUT_CHANNELS);
     // Zero-filled, so views and Gaussians with nothing to say need no launch.
-    let radii = zeros_u32(&inp.means, v_count * n * 2);
+    let radii = zeros_u32(&inp.means, v_count * r * 2);
     let counts = zeros_u32(&inp.means, v_count * 2);
-    if n > 0 {
-        for (v, vb) in project_and_bin_all(inp, cfg).into_iter().enumerate() {
-            write_view_meta(inp, v, &vb, &radii, &counts);
-            let Some(bins) = vb.bins(inp, v) else {
-                continue;
-            };
-            let (count, dim) = tile_grid(inp);
-            rasterize_forward::launch(
-                &inp.means.client,
-                count,
-                dim,
-                vb.records.into_tensor_arg(),
-                bins.tile_start.into_tensor_arg(),
-                bins.items.into_tensor_arg(),
-                image.clone().into_tensor_arg(),
-                inp.width,
-                inp.height,
-                inp.cams[v].tiles_x(),
-                view_offset(inp, v),
-                cfg.alpha_min as f32,
-                cfg.alpha_clamp.max_alpha() as f32,
-                cfg.transmittance_min as f32,
-            );
-        }
+    for (v, vb) in project_and_bin_all(inp, cfg).into_iter().enumerate() {
+        let Some(vb) = vb else {
+            continue;
+        };
+        write_view_meta(inp, v, &vb, &radii, &counts);
+        let Some(bins) = vb.bins(inp, v) else {
+            continue;
+        };
+        let (count, dim) = tile_grid(inp);
+        rasterize_forward::launch(
+            &inp.means.client,
+            count,
+            dim,
+            vb.records.into_tensor_arg(),
+            bins.tile_start.into_tensor_arg(),
+            bins.items.into_tensor_arg(),
+            image.clone().into_tensor_arg(),
+            inp.width,
+            inp.height,
+            inp.cams[v].tiles_x(),
+            view_offset(inp, v),
+            cfg.alpha_min as f32,
+            cfg.alpha_clamp.max_alpha() as f32,
+            cfg.transmittance_min as f32,
+        );
     }
     let image = CubeBackend::float_reshape(image, Shape::new([v_count, h, w, OUT_CHANNELS]));
     // The counters are small non-negative integers: their u32 bits read as i32.
     let as_int =
         |t: CubeTensor, shape: Shape| CubeBackend::int_reshape(retype(t, DType::I32), shape);
-    let radii = as_int(radii, Shape::new([v_count, n, 2]));
+    let radii = as_int(radii, Shape::new([v_count, r, 2]));
     let counts = as_int(counts, Shape::new([v_count, 2]));
     (image, radii, counts)
 }
@@ -346,13 +373,12 @@ pub fn backward(
     );
     let native = has_float_atomic_add(&inp.means)
         && cfg.grad_accumulation != crate::config::GradAccumulation::CompareAndSwap;
-    let views = if n > 0 {
-        project_and_bin_all(inp, cfg)
-    } else {
-        Vec::new()
-    };
-    for (v, vb) in views.into_iter().enumerate() {
+    for (v, vb) in project_and_bin_all(inp, cfg).into_iter().enumerate() {
+        let Some(vb) = vb else {
+            continue;
+        };
         if let Some(bins) = vb.bins(inp, v) {
+            let (first, n) = (vb.first, vb.rows);
             let v_proj = zeros(&inp.means, n * RECORD_LANES);
             let (count, dim) = tile_grid(inp);
             let launch = if native {
@@ -402,6 +428,7 @@ pub fn backward(
                 g_opac.clone().into_tensor_arg(),
                 g_colors.clone().into_tensor_arg(),
                 cam_part.clone().into_tensor_arg(),
+                first as u32,
                 n as u32,
                 cfg.near as f32,
                 cfg.far as f32,

@@ -1,7 +1,8 @@
 //! Backward of the projection for one view (`project_one_vjp` in `cpu/project.rs`): one thread
 //! per Gaussian, no atomics.
 //!
-//! Gaussian gradients are *added* into the flat `[N,3] / [N,4] / [N,3] / [N] / [N,3]` buffers
+//! The view's Gaussians are input rows `first .. first + n` (as in the forward); their
+//! gradients are *added* into the flat `[N,3] / [N,4] / [N,3] / [N] / [N,3]` buffers
 //! (views run one after another on the same stream, so the read-modify-write is race free);
 //! the camera partials of this view are *written* to `cam_part [N, CAM_GRAD_LANES]`
 //! (R row-major 9, t 3, fx, fy, cx, cy; zero for culled Gaussians) and reduced by the host.
@@ -65,6 +66,7 @@ pub fn project_backward(
     g_opacities: &mut Tensor<f32>,
     g_colors: &mut Tensor<f32>,
     cam_part: &mut Tensor<f32>,
+    first: u32,
     n: u32,
     near: f32,
     far: f32,
@@ -77,8 +79,9 @@ pub fn project_backward(
     let cp = i * CAM_GRAD_LANES;
     let mo = i * META_LANES;
     let visible = meta[mo + 2] > meta[mo] && meta[mo + 3] > meta[mo + 1];
+    let gi = first as usize + i;
     let cam = load_cam(cam_rec);
-    let geo = geometry(means, quats, scales, i, cam, near, far, eps2d);
+    let geo = geometry(means, quats, scales, gi, cam, near, far, eps2d);
     if !(visible && geo.valid) {
         // Culled: no gradient from this view.
         for k in 0..CAM_GRAD_LANES {
@@ -88,10 +91,10 @@ pub fn project_backward(
     }
     let l = i * RECORD_LANES;
     let (gu, gv) = (v_proj[l], v_proj[l + 1]);
-    g_opacities[i] += v_proj[l + 5];
-    g_colors[i * 3] += v_proj[l + 6];
-    g_colors[i * 3 + 1] += v_proj[l + 7];
-    g_colors[i * 3 + 2] += v_proj[l + 8];
+    g_opacities[gi] += v_proj[l + 5];
+    g_colors[gi * 3] += v_proj[l + 6];
+    g_colors[gi * 3 + 1] += v_proj[l + 7];
+    g_colors[gi * 3 + 2] += v_proj[l + 8];
 
     let two = 2.0f32;
     let (x, y, z) = (geo.m.x, geo.m.y, geo.m.z);
@@ -160,13 +163,13 @@ pub fn project_backward(
     };
     let rt = m3_transpose(cam.rot);
     let g_mean = m3_mul_vec(rt, gm);
-    g_means[i * 3] += g_mean.x;
-    g_means[i * 3 + 1] += g_mean.y;
-    g_means[i * 3 + 2] += g_mean.z;
+    g_means[gi * 3] += g_mean.x;
+    g_means[gi * 3 + 1] += g_mean.y;
+    g_means[gi * 3 + 2] += g_mean.z;
     let p = V3 {
-        x: means[i * 3],
-        y: means[i * 3 + 1],
-        z: means[i * 3 + 2],
+        x: means[gi * 3],
+        y: means[gi * 3 + 1],
+        z: means[gi * 3 + 2],
     };
     let outer = m3_new(
         gm.x * p.x,
@@ -205,19 +208,19 @@ pub fn project_backward(
     // Σw = M Mᵀ: dM = 2 dΣw M; M = Rq diag(s).
     let g_m = m3_scale(m3_mul(g_cov_w, geo.mmat), two);
     let s = V3 {
-        x: scales[i * 3],
-        y: scales[i * 3 + 1],
-        z: scales[i * 3 + 2],
+        x: scales[gi * 3],
+        y: scales[gi * 3 + 1],
+        z: scales[gi * 3 + 2],
     };
     let g_rq = m3_scale_cols(g_m, s);
     let rq = geo.rq;
-    g_scales[i * 3] += rq.a00 * g_m.a00 + rq.a10 * g_m.a10 + rq.a20 * g_m.a20;
-    g_scales[i * 3 + 1] += rq.a01 * g_m.a01 + rq.a11 * g_m.a11 + rq.a21 * g_m.a21;
-    g_scales[i * 3 + 2] += rq.a02 * g_m.a02 + rq.a12 * g_m.a12 + rq.a22 * g_m.a22;
+    g_scales[gi * 3] += rq.a00 * g_m.a00 + rq.a10 * g_m.a10 + rq.a20 * g_m.a20;
+    g_scales[gi * 3 + 1] += rq.a01 * g_m.a01 + rq.a11 * g_m.a11 + rq.a21 * g_m.a21;
+    g_scales[gi * 3 + 2] += rq.a02 * g_m.a02 + rq.a12 * g_m.a12 + rq.a22 * g_m.a22;
     let g_qhat = quat_to_rotmat_vjp(geo.q_hat, g_rq);
     let g_q = normalize_quat_vjp(geo.q_hat, geo.inv_qnorm, g_qhat);
-    g_quats[i * 4] += g_q.w;
-    g_quats[i * 4 + 1] += g_q.x;
-    g_quats[i * 4 + 2] += g_q.y;
-    g_quats[i * 4 + 3] += g_q.z;
+    g_quats[gi * 4] += g_q.w;
+    g_quats[gi * 4 + 1] += g_q.x;
+    g_quats[gi * 4 + 2] += g_q.y;
+    g_quats[gi * 4 + 3] += g_q.z;
 }

@@ -1,5 +1,7 @@
 //! Projection of every Gaussian into one view: one thread per Gaussian, the same culls in the
-//! same order as `project_one` in `cpu/project.rs`.
+//! same order as `project_one` in `cpu/project.rs`. The view's Gaussians are input rows
+//! `first .. first + n` (all rows when the views share one scene, the view's own set when
+//! they are stacked); the outputs are indexed from 0.
 //!
 //! Outputs (flat, row-major):
 //! - `records [N, RECORD_LANES]` = (mean_x, mean_y, q00, q01, q11, opacity, r, g, b, depth),
@@ -40,6 +42,7 @@ pub fn project_forward(
     cam_rec: &Tensor<f32>,
     records: &mut Tensor<f32>,
     meta: &mut Tensor<f32>,
+    first: u32,
     n: u32,
     width: u32,
     height: u32,
@@ -52,12 +55,13 @@ pub fn project_forward(
     if i >= n as usize {
         terminate!();
     }
+    let gi = first as usize + i;
     let cam = load_cam(cam_rec);
-    let opacity = opacities[i];
-    let (cr, cg, cb) = (colors[i * 3], colors[i * 3 + 1], colors[i * 3 + 2]);
+    let opacity = opacities[gi];
+    let (cr, cg, cb) = (colors[gi * 3], colors[gi * 3 + 1], colors[gi * 3 + 2]);
     let appearance_ok =
         opacity >= alpha_min && finite(opacity) && finite(cr) && finite(cg) && finite(cb);
-    let geo = geometry(means, quats, scales, i, cam, near, far, eps2d);
+    let geo = geometry(means, quats, scales, gi, cam, near, far, eps2d);
 
     // Same arithmetic as the CPU (`fx * x * rz + cx`).
     let rz = 1.0f32 / geo.m.z;

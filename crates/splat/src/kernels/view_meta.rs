@@ -1,5 +1,5 @@
 //! The forward's non-differentiable outputs of one view, written on the device: every
-//! Gaussian's radii (`radii [V, N, 2]`), and `counts [V, 2]` = (visible Gaussians, tile
+//! Gaussian's radii (`radii [V, R, 2]`, R the row width: N, or the largest stacked set), and `counts [V, 2]` = (visible Gaussians, tile
 //! intersections). `visible_flags` marks the visible ones; its exclusive scan's total is the
 //! visible count, so nothing is read back.
 
@@ -12,6 +12,7 @@ pub fn radii_and_flags(
     radii: &mut Tensor<u32>,
     flags: &mut Tensor<u32>,
     n: u32,
+    row_width: u32,
     view: u32,
 ) {
     let i = ABSOLUTE_POS;
@@ -20,7 +21,7 @@ pub fn radii_and_flags(
     }
     let m = i * META_LANES;
     // Radii are small non-negative integers held in f32 (zero when culled).
-    let o = (view as usize * n as usize + i) * 2;
+    let o = (view as usize * row_width as usize + i) * 2;
     radii[o] = u32::cast_from(meta[m + 4]);
     radii[o + 1] = u32::cast_from(meta[m + 5]);
     let mut visible = 0u32;

@@ -7,4 +7,5 @@ mod device_sort;
 mod edge;
 mod gradients;
 mod oracle;
+mod stacked;
 mod wgpu_parity;
