@@ -21,6 +21,7 @@ pub mod checkpoint;
 pub mod dino;
 pub mod dpt;
 pub mod future;
+pub mod host_read;
 pub mod model;
 pub mod motion;
 pub mod pose;

@@ -11,6 +11,7 @@
 //!    with the rasterizer of `envision4d-splat`.
 
 use crate::adapter::{gaussians_at, AdaptedGaussians, Exclusion, OpacityMapping};
+use crate::host_read;
 use crate::model::{Envision4d, Heads, Predictions};
 use crate::motion::still_displacements;
 use crate::pose::{pose_encoding_to_extri_intri, FOV};
@@ -60,14 +61,9 @@ pub fn clamp_fov(pose: Tensor<3>) -> Tensor<3> {
     pose.slice_assign([0..b, 0..n, FOV], fov)
 }
 
-fn all_finite(t: &Tensor<4>) -> bool {
-    !t.clone()
-        .is_finite()
-        .bool_not()
-        .any()
-        .into_data()
-        .iter::<bool>()
-        .any(|b| b)
+/// How many entries of `t` are NaN or infinite, on the device (`[1]`).
+fn non_finite<const D: usize>(t: &Tensor<D>) -> Tensor<1> {
+    t.clone().is_finite().bool_not().float().sum()
 }
 
 /// Forward on `context [B, T_c, 3, H, W]` with every head, cameras rebuilt from the
@@ -101,12 +97,17 @@ pub fn predict_scene_with(model: &Envision4d, context: Tensor<5>, motion: Motion
         pred.motion_enc = Some(still_displacements(b, tc, n, [h, w], &device));
     }
     let pose = pred.backbone.pose_enc();
-    if !pose.clone().into_data().iter::<f64>().all(f64::is_finite) {
+    let (extr, intr) = renderable_cameras(pose.clone(), h, w);
+    // One host read for both checks. A finite encoding can still decode to NaN cameras (a
+    // zero quaternion).
+    let bad = host_read::read_all(vec![
+        non_finite(&pose),
+        non_finite(&extr) + non_finite(&intr),
+    ]);
+    if bad[0] != 0.0 {
         return Err(SceneError::NonFinite("pose encoding"));
     }
-    let (extr, intr) = renderable_cameras(pose, h, w);
-    // A finite encoding can still decode to NaN cameras (a zero quaternion).
-    if !all_finite(&extr) || !all_finite(&intr) {
+    if bad[1] != 0.0 {
         return Err(SceneError::NonFinite("camera"));
     }
     pred.backbone.extrinsics = extr;

@@ -249,12 +249,25 @@ pub fn render_each(
     render_sets(&stacked, cameras, ViewSets::Stacked(rows), config)
 }
 
+thread_local! {
+    static RENDER_CALLS: std::cell::Cell<usize> = const { std::cell::Cell::new(0) };
+}
+
+/// Rasterizer calls ([`render`], [`render_each`]) this thread has made so far. Each costs a
+/// fixed number of host reads whatever its number of views (the cameras, and on GPU
+/// backends one read of all views' intersection totals per pass), so tests hold callers to
+/// a number of calls.
+pub fn render_calls() -> usize {
+    RENDER_CALLS.with(std::cell::Cell::get)
+}
+
 fn render_sets(
     gaussians: &Gaussians,
     cameras: &Cameras,
     sets: ViewSets,
     config: &RasterConfig,
 ) -> Result<RenderOutput, RenderError> {
+    RENDER_CALLS.with(|c| c.set(c.get() + 1));
     validate_sets(gaussians, cameras, &sets, config)?;
     let g = gaussians.clone();
     let c = cameras.clone();

@@ -6,6 +6,7 @@ use crate::config::LossConfig;
 use crate::error::{Result, TrainError};
 use burn::tensor::Tensor;
 use envision4d_losses::{camera_distill_weighted, depth_distill};
+use envision4d_model::host_read;
 use envision4d_model::model::VggtDepth;
 use envision4d_model::Envision4d;
 
@@ -71,5 +72,5 @@ pub fn backbone_loss(
 }
 
 fn finite(t: &Tensor<1>) -> bool {
-    t.clone().into_data().iter::<f64>().all(f64::is_finite)
+    host_read::read(t.clone()).iter::<f64>().all(f64::is_finite)
 }

@@ -4,6 +4,7 @@
 use crate::config::FreezeGroup;
 use burn::module::{Module, ModuleMapper, ModuleVisitor, Param, ParamId};
 use burn::tensor::{Gradients, Tensor};
+use envision4d_model::host_read;
 use envision4d_model::Envision4d;
 use std::collections::HashSet;
 
@@ -132,7 +133,7 @@ impl NonFinite<'_> {
     }
     fn finite(self) -> bool {
         self.bad
-            .is_none_or(|a| a.into_data().iter::<f64>().all(|c| c == 0.0))
+            .is_none_or(|a| host_read::read(a).iter::<f64>().all(|c| c == 0.0))
     }
 }
 

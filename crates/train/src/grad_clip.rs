@@ -6,6 +6,7 @@
 use burn::module::{Module, ModuleVisitor, Param};
 use burn::optim::GradientsParams;
 use burn::tensor::Tensor;
+use envision4d_model::host_read;
 
 /// Added to the norm before dividing, as PyTorch does, so a zero gradient stays finite.
 const NORM_EPS: f64 = 1e-6;
@@ -49,7 +50,7 @@ pub fn clip_global_norm<M: Module>(
 ) -> Option<f64> {
     let mut sq = SquaredNorm { grads, acc: None };
     module.visit(&mut sq);
-    let norm = sq.acc?.into_data().iter::<f64>().next()?.sqrt();
+    let norm = host_read::read(sq.acc?).iter::<f64>().next()?.sqrt();
     let factor = max_norm / (norm + NORM_EPS);
     if factor < 1.0 {
         module.visit(&mut Scale { grads, factor });

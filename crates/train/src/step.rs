@@ -17,6 +17,7 @@ use burn::grad_clipping::GradientClippingConfig;
 use burn::optim::{AdamConfig, GradientsParams, ModuleOptimizer};
 use burn::tensor::{Device, Tensor};
 use envision4d_losses::{psnr_from_mse, LpipsNet, LpipsStatus, RgbLoss};
+use envision4d_model::host_read;
 use envision4d_model::scene::{predict_scene_with, Motion};
 use envision4d_model::Envision4d;
 use envision4d_splat::RasterConfig;
@@ -32,6 +33,38 @@ pub struct LossTerms {
     pub camera: Option<Tensor<1>>,
     pub depth: Option<Tensor<1>>,
     pub phase: Phase,
+}
+
+/// Host values of a step's loss terms (0 for a term the step does not have).
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct LossValues {
+    pub total: f64,
+    pub rgb: f64,
+    pub camera: f64,
+    pub depth: f64,
+    pub mse: Option<f64>,
+}
+
+impl LossTerms {
+    /// Every term's value, read back in one round trip (a log line needs them all).
+    pub(crate) fn values(&self) -> LossValues {
+        let zero = || Tensor::<1>::zeros([1], &self.total.device());
+        let one = |t: &Tensor<1>| t.clone().reshape([1]);
+        let v = host_read::read_all(vec![
+            one(&self.total),
+            one(&self.rgb),
+            self.camera.as_ref().map_or_else(zero, one),
+            self.depth.as_ref().map_or_else(zero, one),
+            self.rgb_mse.as_ref().map_or_else(zero, one),
+        ]);
+        LossValues {
+            total: v[0],
+            rgb: v[1],
+            camera: v[2],
+            depth: v[3],
+            mse: self.rgb_mse.as_ref().map(|_| v[4]),
+        }
+    }
 }
 
 /// Host values of a finished step.
@@ -81,14 +114,6 @@ impl StepOutcome {
     pub fn applied(self) -> bool {
         self == StepOutcome::Applied
     }
-}
-
-pub(crate) fn scalar(t: &Tensor<1>) -> f64 {
-    t.clone()
-        .into_data()
-        .iter::<f64>()
-        .next()
-        .unwrap_or(f64::NAN)
 }
 
 fn make_rgb_loss(config: &TrainConfig, device: &Device) -> Result<RgbLoss> {
@@ -310,14 +335,15 @@ impl Trainer {
             }
             Err(e) => return Err(e),
         };
-        let total = scalar(&terms.total);
+        let v = terms.values();
+        let total = v.total;
         let report = |outcome| StepReport {
             step,
             total,
-            rgb: scalar(&terms.rgb),
-            camera: terms.camera.as_ref().map_or(0.0, scalar),
-            depth: terms.depth.as_ref().map_or(0.0, scalar),
-            psnr: terms.rgb_mse.as_ref().map(|m| psnr_from_mse(scalar(m))),
+            rgb: v.rgb,
+            camera: v.camera,
+            depth: v.depth,
+            psnr: v.mse.map(psnr_from_mse),
             lr,
             phase: terms.phase,
             outcome,

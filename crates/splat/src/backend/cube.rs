@@ -5,6 +5,7 @@
 use super::{host, host_sort, SplatGrads, SplatOps};
 use crate::config::RasterConfig;
 use crate::kernels::launch::{self, Inputs};
+use crate::kernels::launch_backward;
 use crate::kernels::sort;
 use crate::views::ViewSets;
 use burn::backend::tensor::{FloatTensor, IntTensor};
@@ -54,7 +55,7 @@ impl SplatOps for CubeBackend {
             return host::backward::<Self>(inputs, grad_image, width, height, &sets, &config);
         }
         let shapes = inputs.each_ref().map(|t| t.shape());
-        launch::backward(
+        launch_backward::backward(
             &Inputs::new(inputs, width, height, &sets),
             grad_image,
             shapes,

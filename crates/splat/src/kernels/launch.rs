@@ -1,21 +1,18 @@
 //! Host side of the CubeCL rasterizer: camera records, kernel launches and the per-view
-//! driver, for f32 tensors of any CubeCL runtime (the binning's launches in `binning`).
+//! driver, for f32 tensors of any CubeCL runtime (the binning's launches in `binning`, the
+//! backward pass in `launch_backward`).
 //!
 //! Every launch is skipped when its work is empty (N == 0, no visible Gaussian, no tile
 //! intersection): CubeCL does not support zero-size dispatches, and the zero-filled outputs
 //! are already the right answer.
 
 use super::binning::{bins_of_view, order_view, DepthOrder, DeviceBins};
-use super::camera_grad::camera_grad_matrices;
 use super::math::CAM_LANES;
-use super::project_backward::{project_backward, CAM_GRAD_LANES};
 use super::project_forward::{project_forward, META_LANES, RECORD_LANES};
-use super::rasterize_backward::{rasterize_backward, CasAdd, NativeAdd};
 use super::rasterize_forward::{rasterize_forward, OUT_CHANNELS, TILE};
 use super::readback::{read_f32, read_u32s};
 use super::sort::{empty_u32, exclusive_scan, retype};
 use super::view_meta::{radii_and_flags, view_counts};
-use crate::backend::SplatGrads;
 use crate::camera::Camera;
 use crate::config::RasterConfig;
 use crate::views::ViewSets;
@@ -27,12 +24,10 @@ use burn_cubecl::kernel::into_contiguous;
 use burn_cubecl::ops::numeric::{empty_device_dtype, zeros_client};
 use burn_cubecl::tensor::CubeTensor;
 use burn_cubecl::CubeBackend;
-use cubecl::features::AtomicUsage;
-use cubecl::ir::{ElemType, FloatKind, Type};
 use cubecl::{calculate_cube_count_elemwise, CubeCount, CubeDim};
 
 /// A flat (1-D, contiguous) view of `t`, so kernels may index it with `row * lanes + k`.
-fn flat(t: CubeTensor) -> CubeTensor {
+pub(super) fn flat(t: CubeTensor) -> CubeTensor {
     let n = t.shape().num_elements();
     CubeBackend::float_reshape(into_contiguous(t), Shape::new([n]))
 }
@@ -70,7 +65,7 @@ fn zeros_u32(like: &CubeTensor, len: usize) -> CubeTensor {
     )
 }
 
-fn zeros(like: &CubeTensor, len: usize) -> CubeTensor {
+pub(super) fn zeros(like: &CubeTensor, len: usize) -> CubeTensor {
     check_binding(like, "output", len);
     zeros_client(
         like.client.clone(),
@@ -148,13 +143,13 @@ impl Inputs {
 }
 
 /// One view after projection and the first half of the binning.
-struct ViewBins {
+pub(super) struct ViewBins {
     /// The view's Gaussians: `rows` input rows from `first`.
-    first: usize,
-    rows: usize,
-    cam_rec: CubeTensor,
-    records: CubeTensor,
-    meta: CubeTensor,
+    pub(super) first: usize,
+    pub(super) rows: usize,
+    pub(super) cam_rec: CubeTensor,
+    pub(super) records: CubeTensor,
+    pub(super) meta: CubeTensor,
     depth: DepthOrder,
     /// Tile intersections of the view (read back with every other view's).
     intersections: usize,
@@ -162,7 +157,7 @@ struct ViewBins {
 
 impl ViewBins {
     /// The view's tile lists; `None` when no Gaussian touches a tile.
-    fn bins(&self, inp: &Inputs, v: usize) -> Option<DeviceBins> {
+    pub(super) fn bins(&self, inp: &Inputs, v: usize) -> Option<DeviceBins> {
         let cam = &inp.cams[v];
         bins_of_view(
             &self.depth,
@@ -178,7 +173,7 @@ impl ViewBins {
 /// Projects and depth-orders every view, then reads all their intersection totals back at
 /// once (the render call's one readback besides the cameras). `None` for a view without
 /// Gaussians.
-fn project_and_bin_all(inp: &Inputs, cfg: &RasterConfig) -> Vec<Option<ViewBins>> {
+pub(super) fn project_and_bin_all(inp: &Inputs, cfg: &RasterConfig) -> Vec<Option<ViewBins>> {
     let totals = zeros_u32(&inp.means, inp.cams.len());
     let views: Vec<_> = (0..inp.cams.len())
         .map(|v| {
@@ -288,12 +283,12 @@ fn write_view_meta(inp: &Inputs, v: usize, vb: &ViewBins, radii: &CubeTensor, co
     );
 }
 
-fn tile_grid(inp: &Inputs) -> (CubeCount, CubeDim) {
+pub(super) fn tile_grid(inp: &Inputs) -> (CubeCount, CubeDim) {
     let (tx, ty) = (inp.width.div_ceil(TILE), inp.height.div_ceil(TILE));
     (CubeCount::Static(tx, ty, 1), CubeDim::new_2d(TILE, TILE))
 }
 
-fn view_offset(inp: &Inputs, v: usize) -> u32 {
+pub(super) fn view_offset(inp: &Inputs, v: usize) -> u32 {
     let off = v * inp.width as usize * inp.height as usize * OUT_CHANNELS;
     u32::try_from(off).expect("splat: image batch too large for 32-bit offsets")
 }
@@ -346,119 +341,4 @@ pub fn forward(
     let radii = as_int(radii, Shape::new([v_count, r, 2]));
     let counts = as_int(counts, Shape::new([v_count, 2]));
     (image, radii, counts)
-}
-
-fn has_float_atomic_add(t: &CubeTensor) -> bool {
-    t.client
-        .properties()
-        .atomic_type_usage(Type::atomic(ElemType::Float(FloatKind::F32)))
-        .contains(AtomicUsage::Add)
-}
-
-/// `splat_backward` on the GPU; `shapes` are the seven input shapes for the outputs.
-pub fn backward(
-    inp: &Inputs,
-    grad_image: FloatTensor<CubeBackend>,
-    shapes: [Shape; 7],
-    cfg: &RasterConfig,
-) -> SplatGrads<CubeBackend> {
-    let n = inp.n;
-    let grad_image = flat(grad_image);
-    let [g_means, g_quats, g_scales, g_opac, g_colors] =
-        [3, 4, 3, 1, 3].map(|lanes| zeros(&inp.means, n * lanes));
-    let v_count = inp.cams.len();
-    let (g_viewmats, g_ks) = (
-        zeros(&inp.means, v_count * 16),
-        zeros(&inp.means, v_count * 9),
-    );
-    let native = has_float_atomic_add(&inp.means)
-        && cfg.grad_accumulation != crate::config::GradAccumulation::CompareAndSwap;
-    for (v, vb) in project_and_bin_all(inp, cfg).into_iter().enumerate() {
-        let Some(vb) = vb else {
-            continue;
-        };
-        if let Some(bins) = vb.bins(inp, v) {
-            let (first, n) = (vb.first, vb.rows);
-            let v_proj = zeros(&inp.means, n * RECORD_LANES);
-            let (count, dim) = tile_grid(inp);
-            let launch = if native {
-                rasterize_backward::launch::<NativeAdd>
-            } else {
-                rasterize_backward::launch::<CasAdd>
-            };
-            launch(
-                &inp.means.client,
-                count,
-                dim,
-                vb.records.into_tensor_arg(),
-                bins.tile_start.into_tensor_arg(),
-                bins.items.into_tensor_arg(),
-                grad_image.clone().into_tensor_arg(),
-                v_proj.clone().into_tensor_arg(),
-                inp.width,
-                inp.height,
-                inp.cams[v].tiles_x(),
-                view_offset(inp, v),
-                cfg.alpha_min as f32,
-                cfg.alpha_clamp.max_alpha() as f32,
-                cfg.transmittance_min as f32,
-            );
-            let cam_part = empty_device_dtype(
-                inp.means.client.clone(),
-                inp.means.device.clone(),
-                Shape::new([n * CAM_GRAD_LANES]),
-                DType::F32,
-            );
-            let client = &inp.means.client;
-            let cube_dim = CubeDim::new(client, n);
-            let cube_count = calculate_cube_count_elemwise(client, n, cube_dim);
-            project_backward::launch(
-                client,
-                cube_count,
-                cube_dim,
-                inp.means.clone().into_tensor_arg(),
-                inp.quats.clone().into_tensor_arg(),
-                inp.scales.clone().into_tensor_arg(),
-                vb.cam_rec.into_tensor_arg(),
-                vb.meta.into_tensor_arg(),
-                v_proj.into_tensor_arg(),
-                g_means.clone().into_tensor_arg(),
-                g_quats.clone().into_tensor_arg(),
-                g_scales.clone().into_tensor_arg(),
-                g_opac.clone().into_tensor_arg(),
-                g_colors.clone().into_tensor_arg(),
-                cam_part.clone().into_tensor_arg(),
-                first as u32,
-                n as u32,
-                cfg.near as f32,
-                cfg.far as f32,
-                cfg.eps2d as f32,
-            );
-            // Sum the per-Gaussian camera partials and lay them out as the camera
-            // tensors, all on the device.
-            let sums = CubeBackend::float_sum_dim(
-                CubeBackend::float_reshape(cam_part, Shape::new([n, CAM_GRAD_LANES])),
-                0,
-            );
-            camera_grad_matrices::launch(
-                client,
-                CubeCount::new_single(),
-                CubeDim::new_1d(1),
-                into_contiguous(sums).into_tensor_arg(),
-                g_viewmats.clone().into_tensor_arg(),
-                g_ks.clone().into_tensor_arg(),
-                v as u32,
-            );
-        }
-    }
-    let [s_m, s_q, s_s, s_o, s_c, s_v, s_k] = shapes;
-    SplatGrads {
-        means: CubeBackend::float_reshape(g_means, s_m),
-        quats: CubeBackend::float_reshape(g_quats, s_q),
-        scales: CubeBackend::float_reshape(g_scales, s_s),
-        opacities: CubeBackend::float_reshape(g_opac, s_o),
-        colors: CubeBackend::float_reshape(g_colors, s_c),
-        viewmats: CubeBackend::float_reshape(g_viewmats, s_v),
-        ks: CubeBackend::float_reshape(g_ks, s_k),
-    }
 }

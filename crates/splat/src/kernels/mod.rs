@@ -1,6 +1,7 @@
 //! CubeCL kernels of the GPU rasterizer (run by `backend::cube` for every CubeCL runtime).
 //!
-//! Pipeline per view, all on the device: `project_forward` (thread per Gaussian) → tile
+//! Pipeline per view (each view its own Gaussians or all views the same ones, see
+//! [`crate::views`]), all on the device: `project_forward` (thread per Gaussian) → tile
 //! binning (`bin_tiles`, driven by `binning`: depth keys → stable radix sort → tile counts →
 //! exclusive scan, for every view; one readback of all views' intersection totals → (tile,
 //! Gaussian) pairs →
@@ -20,6 +21,7 @@ pub mod binning;
 pub mod camera_grad;
 pub mod geometry;
 pub mod launch;
+pub mod launch_backward;
 pub mod math;
 pub mod project_backward;
 pub mod project_forward;

@@ -12,31 +12,12 @@ pub use reduce::GradientReduce;
 use crate::batch::Batch;
 use crate::error::{Result, TrainError};
 use crate::freeze::grads_finite;
-use crate::step::{scalar, LossTerms, StepOutcome, StepReport, Trainer};
+use crate::step::{LossValues, StepOutcome, StepReport, Trainer};
 use burn::module::Module;
 use burn::optim::GradientsParams;
 use burn::tensor::Device;
 use envision4d_losses::psnr_from_mse;
 use envision4d_model::Envision4d;
-/// Host values of one shard's loss terms.
-struct ShardValues {
-    total: f64,
-    rgb: f64,
-    camera: f64,
-    depth: f64,
-    mse: Option<f64>,
-}
-
-fn values(t: &LossTerms) -> ShardValues {
-    ShardValues {
-        total: scalar(&t.total),
-        rgb: scalar(&t.rgb),
-        camera: t.camera.as_ref().map_or(0.0, scalar),
-        depth: t.depth.as_ref().map_or(0.0, scalar),
-        mse: t.rgb_mse.as_ref().map(scalar),
-    }
-}
-
 /// Gradients of one data-parallel step, summed on the first device, with the shards' mean
 /// loss terms; or the reason the step cannot be applied.
 pub enum ParallelGradients {
@@ -49,7 +30,7 @@ pub enum ParallelGradients {
 
 /// One shard's forward and backward.
 enum Shard {
-    Ready(GradientsParams, ShardValues),
+    Ready(GradientsParams, LossValues),
     NonFinite(StepOutcome),
 }
 
@@ -64,7 +45,7 @@ impl Trainer {
             }
             other => other?,
         };
-        let v = values(&terms);
+        let v = terms.values();
         if !v.total.is_finite() {
             return Ok(Shard::NonFinite(StepOutcome::SkippedNonFiniteLoss));
         }
@@ -127,7 +108,7 @@ impl Trainer {
             }
         }
         let grads = reduce::combine(reduce, &self.model, grads, devices)?;
-        let mean = |f: fn(&ShardValues) -> f64| vals.iter().map(f).sum::<f64>() / n;
+        let mean = |f: fn(&LossValues) -> f64| vals.iter().map(f).sum::<f64>() / n;
         let psnr = vals
             .iter()
             .all(|v| v.mse.is_some())

@@ -216,3 +216,39 @@ fn same_seed_same_initial_weights_with_frozen_groups() {
         );
     }
 }
+
+/// Guards the training step's device round trips: every target of every batch element is
+/// rendered in one rasterizer call, and the step's own host reads (camera and loss finite
+/// checks, the loss values, the gradient check, clipping, the post-update check) are the
+/// same handful whether the step renders 1 x F or 2 x F views. A read or a render call per
+/// view, the GPU stall this guards against, would make the two counts differ.
+#[test]
+fn a_training_step_has_a_fixed_number_of_host_round_trips() {
+    use envision4d_model::host_read::host_reads;
+    use envision4d_splat::render::render_calls;
+    let device = Device::flex().autodiff();
+    let mut counts = Vec::new();
+    for bsz in [1, 2] {
+        let mut cfg = tiny_config();
+        cfg.optim.batch_size = bsz;
+        cfg.optim.grad_clip = envision4d_train::config::ClipMode::GlobalNorm;
+        let mut t = Trainer::new(cfg, &device).unwrap();
+        let clips: Vec<_> = (0..bsz as u64)
+            .map(|k| crate::common::synth_clip(7 + k))
+            .collect();
+        let b = envision4d_train::batch::Batch::from_clips(&clips, 2, true, &device).unwrap();
+        let (reads, renders) = (host_reads(), render_calls());
+        let r = t.train_step(&b).unwrap();
+        assert_eq!(r.outcome, StepOutcome::Applied);
+        counts.push((host_reads() - reads, render_calls() - renders));
+    }
+    assert_eq!(
+        counts[0], counts[1],
+        "host reads, render calls at batch 1 vs 2"
+    );
+    let (reads, renders) = counts[0];
+    assert_eq!(renders, 1, "render calls per step");
+    // Camera/pose finite check, the loss values, the gradient check, the clipping norm, the
+    // post-update parameter check.
+    assert_eq!(reads, 5, "host reads per step");
+}
