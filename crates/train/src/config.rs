@@ -381,6 +381,27 @@ fn paper_freeze() -> Vec<FreezeGroup> {
     FreezeGroup::PAPER.to_vec()
 }
 
+/// Where a run's initial weights come from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Init {
+    /// `init_checkpoint`; without one, the fresh initialisation, which is allowed at small
+    /// widths only (a paper-width model from random weights is almost surely a missing
+    /// path, not a plan).
+    #[default]
+    Checkpoint,
+    /// Random weights on purpose (benchmarks and memory measurements of paper-size steps):
+    /// no `init_checkpoint`, and a backbone teacher or LPIPS network without weights gets
+    /// random ones as well, each named in the run's output.
+    Random,
+}
+
+impl Init {
+    fn is_checkpoint(&self) -> bool {
+        *self == Init::Checkpoint
+    }
+}
+
 /// The resolved configuration.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct TrainConfig {
@@ -388,6 +409,10 @@ pub struct TrainConfig {
     pub seed: u64,
     pub teacher: Teacher,
     pub freeze: Vec<FreezeGroup>,
+    /// `init = "checkpoint" | "random"` ([`Init`]). Left out of the TOML when default, so
+    /// runs started before the key existed keep their resume identity.
+    #[serde(skip_serializing_if = "Init::is_checkpoint")]
+    pub init: Init,
     /// Initial weights (VGGT-1B release or a stage-1 checkpoint); random init when absent.
     pub init_checkpoint: Option<PathBuf>,
     /// Modules not taken from `init_checkpoint` ([`FreshGroup`]).
@@ -403,6 +428,27 @@ pub struct TrainConfig {
     pub run: RunConfig,
 }
 
+impl TrainConfig {
+    /// The networks this config gives random weights (`init = "random"`), to be named in a
+    /// run's output: numbers from them measure time and memory, not quality.
+    pub fn random_weights(&self) -> Vec<&'static str> {
+        if self.init != Init::Random {
+            return Vec::new();
+        }
+        let mut out = vec!["the model"];
+        if self.stage == Stage::Envision4d
+            && self.teacher == Teacher::Backbone
+            && self.teacher_checkpoint.is_none()
+        {
+            out.push("the frozen teacher");
+        }
+        if self.loss.lambda_lpips > 0.0 && self.loss.lpips_weights.is_none() {
+            out.push("LPIPS's VGG");
+        }
+        out
+    }
+}
+
 /// The file as written: `[model]` is a preset plus overrides, resolved in `load`.
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -413,6 +459,8 @@ pub(crate) struct RawTrainConfig {
     pub teacher: Teacher,
     #[serde(default = "paper_freeze")]
     pub freeze: Vec<FreezeGroup>,
+    #[serde(default)]
+    pub init: Init,
     #[serde(default)]
     pub init_checkpoint: Option<PathBuf>,
     #[serde(default)]

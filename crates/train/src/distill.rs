@@ -49,6 +49,17 @@ impl FrozenTeacher {
         })
     }
 
+    /// A teacher with random weights (`init = "random"`: benchmarks of the step's cost),
+    /// drawn from `seed`.
+    pub fn random(config: &ModelConfig, seed: u64, device: &Device) -> Result<Self> {
+        let model = envision4d_model::seeded::seeded(device, seed, || {
+            Ok::<_, TrainError>(Envision4d::new(config, device))
+        })?;
+        Ok(FrozenTeacher {
+            model: model.no_grad(),
+        })
+    }
+
     /// Pseudo-labels from all N ground-truth frames `images [B, N, 3, H, W]`: pose encodings
     /// of every frame (future ones included) and depth of the first `context` frames.
     pub fn targets(&self, images: Tensor<5>, context: usize) -> Result<DistillTargets> {

@@ -32,6 +32,7 @@ pub fn parse(text: &str, path: &Path) -> Result<TrainConfig> {
         seed: raw.seed,
         teacher: raw.teacher,
         freeze: raw.freeze,
+        init: raw.init,
         init_checkpoint: raw.init_checkpoint,
         init_fresh: raw.init_fresh,
         teacher_checkpoint: raw.teacher_checkpoint,
@@ -45,6 +46,41 @@ pub fn parse(text: &str, path: &Path) -> Result<TrainConfig> {
     };
     validate(&cfg)?;
     Ok(cfg)
+}
+
+/// `init`: random weights at paper widths only when asked for; `init = "random"` with a
+/// checkpoint to load is a contradiction.
+fn validate_init(cfg: &TrainConfig) -> Result<()> {
+    match cfg.init {
+        Init::Random => {
+            if let Some(p) = &cfg.init_checkpoint {
+                return Err(TrainError::invalid(
+                    "init",
+                    "\"random\"",
+                    format!(
+                        "but init_checkpoint = {:?} is set; remove one of the two",
+                        p.display()
+                    ),
+                ));
+            }
+        }
+        Init::Checkpoint => {
+            let paper = envision4d_model::ModelConfig::paper();
+            if cfg.init_checkpoint.is_none() && cfg.model.embed_dim >= paper.embed_dim {
+                return Err(TrainError::invalid(
+                    "init_checkpoint",
+                    "(none)",
+                    format!(
+                        "a model of paper widths (embed_dim {}) would start from random \
+                         weights; give init_checkpoint (VGGT-1B's model.pt), or set \
+                         init = \"random\" to do this on purpose (benchmarks)",
+                        cfg.model.embed_dim
+                    ),
+                ));
+            }
+        }
+    }
+    Ok(())
 }
 
 /// `preset = "tiny" | "paper"` (default `paper`) plus overrides; unknown keys are rejected
@@ -184,7 +220,7 @@ pub fn validate(cfg: &TrainConfig) -> Result<()> {
     non_negative("loss.lambda_depth", l.lambda_depth)?;
     non_negative("loss.rotation_weight", l.rotation_weight)?;
     non_negative("loss.lambda_ssim", l.lambda_ssim)?;
-    if l.lambda_lpips > 0.0 && l.lpips_weights.is_none() {
+    if l.lambda_lpips > 0.0 && l.lpips_weights.is_none() && cfg.init != Init::Random {
         return Err(TrainError::invalid(
             "loss.lambda_lpips",
             l.lambda_lpips,
@@ -213,10 +249,12 @@ pub fn validate(cfg: &TrainConfig) -> Result<()> {
             ),
         ));
     }
+    validate_init(cfg)?;
     if cfg.teacher == Teacher::Backbone
         && cfg.stage == Stage::Envision4d
         && cfg.teacher_checkpoint.is_none()
         && cfg.init_checkpoint.is_none()
+        && cfg.init != Init::Random
     {
         return Err(TrainError::invalid(
             "teacher",

@@ -226,6 +226,14 @@ pub fn run(
             ),
         ));
     }
+    let random = cfg.random_weights();
+    if !random.is_empty() {
+        obs.note(&format!(
+            "init = \"random\": {} have random weights; this run measures time and memory, \
+             not quality",
+            random.join(", ")
+        ));
+    }
     let mut trainer = start_trainer(&cfg, device, resume_dir.as_deref(), &ckpt_root, obs)?;
     if devices.len() > 1 {
         trainer.prepare_devices(devices)?;

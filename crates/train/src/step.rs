@@ -6,7 +6,7 @@
 
 use crate::backbone::backbone_loss;
 use crate::batch::Batch;
-use crate::config::{ClipMode, Stage, Teacher, TrainConfig};
+use crate::config::{ClipMode, Init, Stage, Teacher, TrainConfig};
 use crate::distill::{labels, DistillLoss, FrozenTeacher};
 use crate::error::{Result, TrainError};
 use crate::freeze::{detach_frozen, grads_finite, params_finite, ParamSplit};
@@ -15,8 +15,8 @@ pub use crate::init::{build_model, identity_pose_init, INITIAL_FOV_RAD, POSE_OUT
 use crate::schedule::{Phase, PhasePlan, Schedule};
 use burn::grad_clipping::GradientClippingConfig;
 use burn::optim::{AdamConfig, GradientsParams, ModuleOptimizer};
-use burn::tensor::{Device, Tensor};
-use envision4d_losses::{psnr_from_mse, LpipsNet, LpipsStatus, RgbLoss};
+use burn::tensor::{DType, Device, Tensor};
+use envision4d_losses::{psnr_from_mse, Lpips, LpipsNet, LpipsStatus, LpipsWeights, RgbLoss};
 use envision4d_model::host_read;
 use envision4d_model::scene::{predict_scene_with, Motion};
 use envision4d_model::Envision4d;
@@ -118,6 +118,14 @@ impl StepOutcome {
 
 fn make_rgb_loss(config: &TrainConfig, device: &Device) -> Result<RgbLoss> {
     let path = config.loss.lpips_weights.as_deref();
+    if path.is_none() && config.init == Init::Random && config.loss.lambda_lpips > 0.0 {
+        // Random VGG weights: what LPIPS costs, named by `random_weights`.
+        let weights = LpipsWeights::random(LpipsNet::Vgg, config.seed);
+        let lpips = LpipsStatus::Available(Lpips::new(&weights, device, DType::F32));
+        return Ok(
+            RgbLoss::new(config.loss.lambda_lpips, &lpips)?.with_ssim(config.loss.lambda_ssim)?
+        );
+    }
     let lpips = LpipsStatus::from_path(path, LpipsNet::Vgg, device).map_err(|e| {
         TrainError::invalid(
             "loss.lpips_weights",
@@ -174,6 +182,15 @@ impl Trainer {
         let split = ParamSplit::new(&model, &config.freeze);
         let model = detach_frozen(model, &split);
         let teacher = match (config.stage, config.teacher) {
+            (Stage::Envision4d, Teacher::Backbone)
+                if config.init == Init::Random && config.teacher_checkpoint.is_none() =>
+            {
+                Some(FrozenTeacher::random(
+                    &config.model,
+                    config.seed.wrapping_add(1),
+                    device,
+                )?)
+            }
             (Stage::Envision4d, Teacher::Backbone) => {
                 let path = config
                     .teacher_checkpoint

@@ -64,6 +64,51 @@ pub struct QuantizedKeys {
 }
 
 impl LpipsWeights {
+    /// Random weights of the right shapes (He-scaled convs, zero biases, lin weights uniform
+    /// in [0, 1/C)): a network that costs what the real one costs, for benchmarks and memory
+    /// measurements only. Its distances mean nothing, so callers must say it is random.
+    pub fn random(net: LpipsNet, seed: u64) -> Self {
+        // SplitMix64: a small, fixed generator so the same seed gives the same weights.
+        let mut state = seed;
+        let mut unit = move || {
+            state = state.wrapping_add(0x9e37_79b9_7f4a_7c15);
+            let mut z = state;
+            z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+            z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+            ((z ^ (z >> 31)) >> 11) as f32 / (1u64 << 53) as f32
+        };
+        let convs = net
+            .slices()
+            .iter()
+            .flat_map(|s| s.convs.iter())
+            .map(|c| {
+                let fan_in = (c.in_ch * c.kernel * c.kernel) as f32;
+                let bound = (6.0 / fan_in).sqrt();
+                let shape = vec![c.out_ch, c.in_ch, c.kernel, c.kernel];
+                let len = shape.iter().product();
+                ConvWeights {
+                    weight: HostTensor {
+                        shape,
+                        data: (0..len).map(|_| (2.0 * unit() - 1.0) * bound).collect(),
+                    },
+                    bias: HostTensor {
+                        shape: vec![c.out_ch],
+                        data: vec![0.0; c.out_ch],
+                    },
+                }
+            })
+            .collect();
+        let lins = net
+            .channels()
+            .iter()
+            .map(|&ch| HostTensor {
+                shape: vec![1, ch, 1, 1],
+                data: (0..ch).map(|_| unit() / ch as f32).collect(),
+            })
+            .collect();
+        Self { net, convs, lins }
+    }
+
     /// Check every shape against the network's table and the lin weights for finiteness.
     pub fn new(net: LpipsNet, convs: Vec<ConvWeights>, lins: Vec<HostTensor>) -> Result<Self> {
         let specs: Vec<_> = net.slices().iter().flat_map(|s| s.convs.iter()).collect();

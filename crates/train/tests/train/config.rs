@@ -311,3 +311,52 @@ fn ablation_configs_cover_every_paper_row() {
         );
     }
 }
+
+/// Guards `init`: a paper-width config that lost its `init_checkpoint` is refused (it would
+/// silently train from random weights), `init = "random"` allows it and names every network
+/// it randomises (model, teacher, LPIPS's VGG), and `init = "random"` next to a checkpoint
+/// is a contradiction naming the key. The default stays out of the saved TOML, so runs
+/// started before the key existed resume.
+#[test]
+fn random_init_only_on_purpose() {
+    let text = std::fs::read_to_string(config_path("waymo.toml")).unwrap();
+    let no_init = text.replace(
+        "init_checkpoint = \"weights/VGGT-1B/model.pt\"",
+        "# init_checkpoint removed",
+    );
+    let err = envision4d_train::parse(&no_init, Path::new("x.toml"))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("init_checkpoint") && err.contains("init = \"random\""),
+        "{err}"
+    );
+    let lpips_off = no_init.replace(
+        "lpips_weights = \"weights/lpips_vgg.safetensors\"",
+        "# no LPIPS weights",
+    );
+    let random = lpips_off.replace(
+        "stage = \"envision4d\"",
+        "stage = \"envision4d\"\ninit = \"random\"",
+    );
+    let cfg = envision4d_train::parse(&random, Path::new("x.toml")).unwrap();
+    assert_eq!(
+        cfg.random_weights(),
+        vec!["the model", "the frozen teacher", "LPIPS's VGG"]
+    );
+    assert!(cfg.to_toml().contains("init = \"random\""));
+    let both = text.replace(
+        "stage = \"envision4d\"",
+        "stage = \"envision4d\"\ninit = \"random\"",
+    );
+    let err = envision4d_train::parse(&both, Path::new("x.toml"))
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("init") && err.contains("model.pt"), "{err}");
+    let shipped = envision4d_train::parse(&text, Path::new("x.toml")).unwrap();
+    assert!(shipped.random_weights().is_empty());
+    assert!(
+        !shipped.to_toml().contains("init ="),
+        "default init written out"
+    );
+}
