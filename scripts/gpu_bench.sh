@@ -6,15 +6,16 @@
 #   scripts/gpu_bench.sh                          # wgpu (and cuda with CUDA=1)
 #   CUDA=1 scripts/gpu_bench.sh                   # also --backend cuda (--features cuda build)
 #   SIZES=10000,100000 scripts/gpu_bench.sh       # smaller scenes (lavapipe: a CPU)
-#   RASTER_BIN=path FORWARD_BIN=path scripts/gpu_bench.sh   # prebuilt benches (built elsewhere)
+#   RASTER_BIN=path FORWARD_BIN=path STEP_BIN=path scripts/gpu_bench.sh   # prebuilt benches
 #   MODEL_PRESET=tiny MODEL_IMAGE=56x84 scripts/gpu_bench.sh  # a small model (lavapipe)
 #   MODEL_MODES=forward scripts/gpu_bench.sh      # no training step
 #   SKIP_MODEL=1 scripts/gpu_bench.sh             # the rasterizer only
 #
-# The model part is crates/model/benches/forward.rs on each GPU backend: the paper-size
-# forward (VGGT-1B widths, 2 context frames at 350x518, random weights) and one training
-# step (forward + backward of every output, all parameters trainable). Its memory column is
-# the host's peak RSS; peak GPU memory is not measured yet.
+# The model part runs on each GPU backend: crates/model/benches/forward.rs for the paper-size
+# forward (VGGT-1B widths, 2 context frames at 350x518, random weights), and
+# crates/train/benches/train_step.rs for one real training step of configs/waymo.toml
+# (batch 1 x 4 frames at 350x518, the paper's freeze list and losses, init = "random").
+# Memory: the host's peak RSS, and the device pool's reserved bytes after the pass.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 OUT=${OUT:-runs/gpu-bench}
@@ -22,10 +23,12 @@ SIZES=${SIZES:-362600,1000000,3000000}
 BACKENDS=wgpu
 FEATURES=()
 MODEL_FEATURES=()
+STEP_FEATURES=()
 if [ -n "${CUDA:-}" ]; then
   BACKENDS=wgpu,cuda
   FEATURES=(--features envision4d-splat/cuda)
   MODEL_FEATURES=(--features envision4d-model/cuda)
+  STEP_FEATURES=(--features envision4d-train/cuda)
 fi
 MODEL_PRESET=${MODEL_PRESET:-paper}
 MODEL_IMAGE=${MODEL_IMAGE:-350x518}
@@ -52,19 +55,27 @@ echo "== raster and sort on $BACKENDS, sizes $SIZES ($(date -u +%FT%TZ))"
 : > "$OUT/model.md.tmp"
 if [ -z "${SKIP_MODEL:-}" ]; then
   FWD=$(bench_bin "${FORWARD_BIN:-}" forward "${MODEL_FEATURES[@]}")
+  STEP=""
+  case " $MODEL_MODES " in *" train "*) STEP=$(bench_bin "${STEP_BIN:-}" train_step "${STEP_FEATURES[@]}") ;; esac
   {
     echo
-    echo "| backend | model | mode | seconds | host peak RSS GiB |"
-    echo "|---|---|---|---|---|"
+    echo "| backend | model | mode | seconds | host peak RSS GiB | device reserved GiB |"
+    echo "|---|---|---|---|---|---|"
   } >> "$OUT/model.md.tmp"
   for b in ${BACKENDS//,/ }; do
     for mode in $MODEL_MODES; do
       echo "== model $MODEL_PRESET at $MODEL_IMAGE, $mode, $b"
-      line=$("$FWD" --preset "$MODEL_PRESET" --image "$MODEL_IMAGE" --device "$b" --mode "$mode" \
-        --repeats 1 | tee /dev/stderr | grep -E '^(forward_warm_s|train_step_s)=' | tail -1)
+      if [ "$mode" = train ]; then
+        line=$("$STEP" --config configs/waymo.toml --preset "$MODEL_PRESET" --image "$MODEL_IMAGE" \
+          --batch 1 --device "$b" --repeats 1 | tee /dev/stderr | grep -E '^train_step_s=' | tail -1)
+      else
+        line=$("$FWD" --preset "$MODEL_PRESET" --image "$MODEL_IMAGE" --device "$b" --mode "$mode" \
+          --repeats 1 | tee /dev/stderr | grep -E '^forward_warm_s=' | tail -1)
+      fi
       secs=$(echo "$line" | sed -n 's/.*_s=\([0-9.]*\).*/\1/p')
       rss=$(echo "$line" | sed -n 's/.*peak_rss_gib=\([0-9.]*\).*/\1/p')
-      echo "| $b | $MODEL_PRESET, $MODEL_IMAGE | $mode | $secs | $rss |" >> "$OUT/model.md.tmp"
+      dev=$(echo "$line" | sed -n 's/.*device_reserved_gib=\([0-9.a-zA-Z]*\).*/\1/p')
+      echo "| $b | $MODEL_PRESET, $MODEL_IMAGE | $mode | $secs | $rss | $dev |" >> "$OUT/model.md.tmp"
     done
   done
 fi

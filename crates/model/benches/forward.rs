@@ -8,7 +8,8 @@
 //!     [--device cpu|wgpu|cuda]
 //! ```
 //!
-//! On a GPU the peak RSS is the host process's, not the GPU's memory.
+//! The peak RSS is the host process's; on a GPU `device_reserved_gib` is the device memory
+//! pool's reserved bytes after the pass (`nan` on the CPU, whose memory is the RSS).
 //!
 //! The weights are drawn (and every lazy parameter materialised) before any clock starts,
 //! then one untimed pass warms the allocator and the thread pool. Each timed pass prints a
@@ -34,6 +35,12 @@ fn peak_rss_gib() -> f64 {
         .and_then(|l| l.split_whitespace().nth(1))
         .and_then(|kb| kb.parse::<f64>().ok())
         .map_or(f64::NAN, |kb| kb / (1024.0 * 1024.0))
+}
+
+fn device_reserved_gib(device: &Device) -> f64 {
+    device
+        .memory_pool_usage()
+        .map_or(f64::NAN, |u| u.bytes_reserved as f64 / (1u64 << 30) as f64)
 }
 
 fn arg(args: &[String], name: &str) -> Option<String> {
@@ -181,7 +188,11 @@ fn main() {
     pass(&model, &images, heads, train); // untimed warm-up
     for _ in 0..repeats {
         let s = pass(&model, &images, heads, train);
-        println!("{label}={s:.4} peak_rss_gib={:.2}", peak_rss_gib());
+        println!(
+            "{label}={s:.4} peak_rss_gib={:.2} device_reserved_gib={:.2}",
+            peak_rss_gib(),
+            device_reserved_gib(&device)
+        );
     }
     if args.iter().any(|a| a == "--profile") {
         let only = |depth, gaussians, motion| Heads {

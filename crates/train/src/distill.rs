@@ -49,15 +49,12 @@ impl FrozenTeacher {
         })
     }
 
-    /// A teacher with random weights (`init = "random"`: benchmarks of the step's cost),
-    /// drawn from `seed`.
-    pub fn random(config: &ModelConfig, seed: u64, device: &Device) -> Result<Self> {
-        let model = envision4d_model::seeded::seeded(device, seed, || {
-            Ok::<_, TrainError>(Envision4d::new(config, device))
-        })?;
-        Ok(FrozenTeacher {
-            model: model.no_grad(),
-        })
+    /// The teacher as `model`'s current weights, sharing its tensors (a snapshot: later
+    /// updates of `model` replace its tensors and leave the teacher's alone).
+    pub fn snapshot(model: &Envision4d) -> Self {
+        FrozenTeacher {
+            model: model.clone().no_grad(),
+        }
     }
 
     /// Pseudo-labels from all N ground-truth frames `images [B, N, 3, H, W]`: pose encodings

@@ -151,6 +151,17 @@ fn make_optimizer(config: &TrainConfig) -> ModuleOptimizer {
         .init()
 }
 
+/// Whether the frozen teacher's weights are the model's initial weights: its checkpoint is
+/// the init checkpoint (the default), or both are random (`init = "random"`).
+fn teacher_is_init(config: &TrainConfig) -> bool {
+    match (&config.teacher_checkpoint, &config.init_checkpoint) {
+        (None, Some(_)) => true,
+        (Some(t), Some(i)) => t == i,
+        (None, None) => config.init == Init::Random,
+        (Some(_), None) => false,
+    }
+}
+
 /// A model with its optimiser, schedule and frozen set.
 pub struct Trainer {
     pub model: Envision4d,
@@ -179,17 +190,13 @@ impl Trainer {
         let model =
             envision4d_model::seeded::seeded(device, config.seed, || build_model(&config, device))?;
         let rgb_loss = make_rgb_loss(&config, device)?;
-        let split = ParamSplit::new(&model, &config.freeze);
-        let model = detach_frozen(model, &split);
         let teacher = match (config.stage, config.teacher) {
-            (Stage::Envision4d, Teacher::Backbone)
-                if config.init == Init::Random && config.teacher_checkpoint.is_none() =>
-            {
-                Some(FrozenTeacher::random(
-                    &config.model,
-                    config.seed.wrapping_add(1),
-                    device,
-                )?)
+            // The teacher is the initial weights: a snapshot of the model as built, sharing
+            // every tensor with it (tensors are immutable values), so only the parameters an
+            // update replaces (the trainable depth head) ever exist twice. A separate load
+            // would hold a second copy of the frozen backbone (4.5 GB at paper widths).
+            (Stage::Envision4d, Teacher::Backbone) if teacher_is_init(&config) => {
+                Some(FrozenTeacher::snapshot(&model))
             }
             (Stage::Envision4d, Teacher::Backbone) => {
                 let path = config
@@ -207,6 +214,8 @@ impl Trainer {
             }
             _ => None,
         };
+        let split = ParamSplit::new(&model, &config.freeze);
+        let model = detach_frozen(model, &split);
         let optim = make_optimizer(&config);
         Ok(Trainer {
             model,
