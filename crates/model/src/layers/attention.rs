@@ -71,11 +71,14 @@ impl Attention {
             k = r.apply(k);
         }
         // softmax(q kᵀ / sqrt(d)) v. Inference on the CPU backend runs our kernel (vectorised
-        // softmax, see `cpu_attention`); elsewhere Burn's op, which decomposes into ordinary,
-        // differentiable ops under autodiff.
+        // softmax, see `cpu_attention`); GPU inference Burn's op.
         let device = q.device();
+        // Under autodiff, the lean op: Burn's decomposed attention would keep two [B, H, N, N]
+        // tensors per layer for the backward (see `lean_attention`).
         let out = if super::cpu_inference(&device) {
             cpu_attention::attention(q, k, v)
+        } else if device.is_autodiff() {
+            super::lean_attention::lean_attention(q, k, v)
         } else {
             attention(q, k, v, None, None, AttentionModuleOptions::default())
         };
