@@ -8,6 +8,7 @@ use crate::checkpoint::{self, MODEL_FILE};
 use crate::config::{Purpose, Stage, Teacher, TrainConfig};
 use crate::dataset::{open_dataset, split};
 use crate::error::{Result, TrainError};
+use crate::lock::RunLock;
 use crate::log::JsonlLog;
 use crate::parallel::GradientReduce;
 use crate::step::{StepReport, Trainer};
@@ -172,6 +173,13 @@ pub fn run(
     let out = cfg.run.out_dir.clone();
     let ckpt_root = out.join(CHECKPOINT_DIR);
     let config_path = out.join(CONFIG_FILE);
+    // The folder the config names: failing to make it (a file in the way, no permission) is
+    // the user's to fix, like `eval --out`. Then one writer: the lock is held until this
+    // function returns, and the checks below run under it, so two runs started together
+    // cannot both pass them.
+    std::fs::create_dir_all(&out)
+        .map_err(|e| TrainError::invalid("run.out_dir", out.display(), e.to_string()))?;
+    let _lock = RunLock::acquire(&out)?;
     let resume_dir = match &opts.resume {
         Some(d) => Some(resolve_resume(d)?),
         None => {
@@ -185,10 +193,6 @@ pub fn run(
             None
         }
     };
-    // The folder the config names: failing to make it (a file in the way, no permission) is
-    // the user's to fix, like `eval --out`.
-    std::fs::create_dir_all(&out)
-        .map_err(|e| TrainError::invalid("run.out_dir", out.display(), e.to_string()))?;
     envision4d_data::atomic::write_bytes(&config_path, cfg.to_toml().as_bytes())
         .map_err(|e| TrainError::write(&config_path, e))?;
 

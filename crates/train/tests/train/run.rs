@@ -340,3 +340,41 @@ fn data_parallel_gradients_equal_single_device_gradients() {
         Err(e) => assert!(e.to_string().contains("all-reduce"), "{e}"),
     }
 }
+
+/// Guards one writer per run directory: while another holder has `run.out_dir` locked, a
+/// run on it (fresh or `--resume`) is refused naming the directory and the holder, before
+/// writing anything; once the holder is gone, the lock file it left behind does not block.
+#[test]
+fn a_locked_run_directory_is_refused() {
+    use envision4d_train::lock::RunLock;
+    let tmp = tempfile::tempdir().unwrap();
+    let data = tmp.path().join("data");
+    write_synth_dataset(&data, 4, 4);
+    let device = Device::flex().autodiff();
+    let mut cfg = config_at(&data, &tmp.path().join("run"));
+    cfg.optim.iterations = 1;
+    let out = cfg.run.out_dir.clone();
+    std::fs::create_dir_all(&out).unwrap();
+    let held = RunLock::acquire(&out).unwrap();
+    for resume in [None, Some(out.clone())] {
+        let opts = RunOptions {
+            resume,
+            ..Default::default()
+        };
+        let err = run(cfg.clone(), &device, opts, &mut Quiet)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("in use") && err.contains(&out.display().to_string()),
+            "{err}"
+        );
+        assert!(
+            err.contains(&format!("pid {}", std::process::id())),
+            "{err}"
+        );
+    }
+    assert!(!out.join("config.toml").exists(), "a refused run wrote");
+    drop(held);
+    assert!(out.join(envision4d_train::lock::LOCK_FILE).exists());
+    run(cfg, &device, RunOptions::default(), &mut Quiet).unwrap();
+}
