@@ -7,8 +7,9 @@
 //! 2. [`gaussians_for`]: the Gaussians as seen at time `j`, either self-exclusive
 //!    (every frame from the *other* frames' Gaussians, paper §3.4) or, for the geometric
 //!    warm-up, including the target's own.
-//! 3. [`Scene::render`] / [`render_targets`]: those Gaussians through the predicted cameras
-//!    with the rasterizer of `envision4d-splat`.
+//! 3. [`Scene::render`] / [`Scene::render_batch`] / [`render_targets`]: those Gaussians
+//!    through the predicted cameras with the rasterizer of `envision4d-splat`, every view of
+//!    a call in one rasterizer call ([`render_pairs`]).
 
 use crate::adapter::{gaussians_at, AdaptedGaussians, Exclusion, OpacityMapping};
 use crate::host_read;

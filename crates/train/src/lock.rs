@@ -5,7 +5,7 @@
 
 use crate::error::{Result, TrainError};
 use std::fs::{File, OpenOptions, TryLockError};
-use std::io::{Read, Seek, SeekFrom, Write};
+use std::io::{Seek, SeekFrom, Write};
 use std::path::{Path, PathBuf};
 
 /// The lock file inside a run directory.
@@ -32,8 +32,8 @@ impl RunLock {
         match file.try_lock() {
             Ok(()) => {}
             Err(TryLockError::WouldBlock) => {
-                let mut holder = String::new();
-                let _ = file.read_to_string(&mut holder);
+                // Read by path: flock does not stop other readers of the file.
+                let holder = std::fs::read_to_string(&path).unwrap_or_default();
                 let holder = holder.trim();
                 return Err(TrainError::Unusable(format!(
                     "run.out_dir {} is in use by another envision4d process ({}); wait for it \
