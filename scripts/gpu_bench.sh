@@ -67,10 +67,10 @@ if [ -z "${SKIP_MODEL:-}" ]; then
       echo "== model $MODEL_PRESET at $MODEL_IMAGE, $mode, $b"
       if [ "$mode" = train ]; then
         line=$("$STEP" --config configs/waymo.toml --preset "$MODEL_PRESET" --image "$MODEL_IMAGE" \
-          --batch 1 --device "$b" --repeats 1 | tee /dev/stderr | grep -E '^train_step_s=' | tail -1)
+          --batch 1 --device "$b" --repeats 1 | tee -a /dev/stderr | grep -E '^train_step_s=' | tail -1)
       else
         line=$("$FWD" --preset "$MODEL_PRESET" --image "$MODEL_IMAGE" --device "$b" --mode "$mode" \
-          --repeats 1 | tee /dev/stderr | grep -E '^forward_warm_s=' | tail -1)
+          --repeats 1 | tee -a /dev/stderr | grep -E '^forward_warm_s=' | tail -1)
       fi
       secs=$(echo "$line" | sed -n 's/.*_s=\([0-9.]*\).*/\1/p')
       rss=$(echo "$line" | sed -n 's/.*peak_rss_gib=\([0-9.]*\).*/\1/p')
