@@ -23,31 +23,10 @@
 
 use burn::module::{Module, ModuleVisitor, Param};
 use burn::tensor::{Device, Distribution, Tensor, TensorData};
+use envision4d_model::bench::{arg, device_reserved_gib, peak_rss_gib};
 use envision4d_model::model::{Heads, Predictions};
 use envision4d_model::{Envision4d, ModelConfig};
 use std::time::Instant;
-
-fn peak_rss_gib() -> f64 {
-    let status = std::fs::read_to_string("/proc/self/status").unwrap_or_default();
-    status
-        .lines()
-        .find(|l| l.starts_with("VmHWM:"))
-        .and_then(|l| l.split_whitespace().nth(1))
-        .and_then(|kb| kb.parse::<f64>().ok())
-        .map_or(f64::NAN, |kb| kb / (1024.0 * 1024.0))
-}
-
-fn device_reserved_gib(device: &Device) -> f64 {
-    device
-        .memory_pool_usage()
-        .map_or(f64::NAN, |u| u.bytes_reserved as f64 / (1u64 << 30) as f64)
-}
-
-fn arg(args: &[String], name: &str) -> Option<String> {
-    args.iter()
-        .position(|a| a == name)
-        .and_then(|i| args.get(i + 1).cloned())
-}
 
 /// Touches every parameter so that lazy initialisation (drawing random weights) happens
 /// here and not inside the first timed pass.
@@ -140,13 +119,8 @@ fn main() {
         Some(h) => panic!("--heads {h}: use all or none"),
     };
     let repeats: usize = arg(&args, "--repeats").map_or(3, |r| r.parse().expect("--repeats N"));
-    let base = match arg(&args, "--device").as_deref() {
-        None | Some("cpu") => Device::flex(),
-        Some("wgpu") => Device::wgpu(burn::tensor::DeviceKind::DefaultDevice),
-        #[cfg(feature = "cuda")]
-        Some("cuda") => Device::cuda(0),
-        Some(d) => panic!("--device {d}: use cpu, wgpu or cuda (with --features cuda)"),
-    };
+    let base = envision4d_model::bench::device(arg(&args, "--device").as_deref())
+        .unwrap_or_else(|e| panic!("{e}"));
     let device = if train { base.autodiff() } else { base };
     let images = match arg(&args, "--images") {
         Some(p) => read_images(&p, &device),

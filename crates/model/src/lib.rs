@@ -16,6 +16,7 @@ pub use scene::{predict_scene, Scene, SceneError};
 pub mod adapter;
 pub mod aggregator;
 pub mod alloc;
+pub mod bench;
 pub mod camera_head;
 pub mod checkpoint;
 pub mod dino;

@@ -157,18 +157,10 @@ impl Scene {
         size: [usize; 2],
         raster: &RasterConfig,
     ) -> Result<Tensor<4>> {
-        let bb = &self.pred.backbone;
-        render_targets(
-            &self.adapted,
-            &bb.extrinsics,
-            &bb.intrinsics,
-            b,
-            targets,
-            exclusion,
-            size,
-            raster,
-        )
+        let pairs: Vec<(usize, usize)> = targets.iter().map(|&j| (b, j)).collect();
+        self.render_pairs(&pairs, exclusion, size, raster)
     }
+
     /// Renders frames `targets` of every batch element in one rasterizer call; returns
     /// `[B * F, 3, H, W]`, batch-major (element b's frames at rows `b * F .. (b + 1) * F`).
     pub fn render_batch(
@@ -178,16 +170,27 @@ impl Scene {
         size: [usize; 2],
         raster: &RasterConfig,
     ) -> Result<Tensor<4>> {
-        let bb = &self.pred.backbone;
-        let bsz = bb.extrinsics.dims()[0];
+        let bsz = self.pred.backbone.extrinsics.dims()[0];
         let pairs: Vec<(usize, usize)> = (0..bsz)
             .flat_map(|b| targets.iter().map(move |&j| (b, j)))
             .collect();
+        self.render_pairs(&pairs, exclusion, size, raster)
+    }
+
+    /// [`render_pairs`] through the scene's own cameras; colour only.
+    fn render_pairs(
+        &self,
+        pairs: &[(usize, usize)],
+        exclusion: Exclusion,
+        size: [usize; 2],
+        raster: &RasterConfig,
+    ) -> Result<Tensor<4>> {
+        let bb = &self.pred.backbone;
         render_pairs(
             &self.adapted,
             &bb.extrinsics,
             &bb.intrinsics,
-            &pairs,
+            pairs,
             exclusion,
             size,
             raster,

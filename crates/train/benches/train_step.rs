@@ -18,35 +18,13 @@
 //! RSS, and the device memory pool's reserved bytes after the step (GPU backends; `nan` on
 //! the CPU, whose memory is the RSS).
 
-use burn::tensor::Device;
 use envision4d_data::HostClip;
+use envision4d_model::bench::{arg, device_reserved_gib, peak_rss_gib};
 use envision4d_train::batch::Batch;
 use envision4d_train::config::{Init, Stage, Teacher};
 use envision4d_train::Trainer;
 use std::path::Path;
 use std::time::Instant;
-
-fn peak_rss_gib() -> f64 {
-    let status = std::fs::read_to_string("/proc/self/status").unwrap_or_default();
-    status
-        .lines()
-        .find(|l| l.starts_with("VmHWM:"))
-        .and_then(|l| l.split_whitespace().nth(1))
-        .and_then(|kb| kb.parse::<f64>().ok())
-        .map_or(f64::NAN, |kb| kb / (1024.0 * 1024.0))
-}
-
-fn device_reserved_gib(device: &Device) -> f64 {
-    device
-        .memory_pool_usage()
-        .map_or(f64::NAN, |u| u.bytes_reserved as f64 / (1u64 << 30) as f64)
-}
-
-fn arg(args: &[String], name: &str) -> Option<String> {
-    args.iter()
-        .position(|a| a == name)
-        .and_then(|i| args.get(i + 1).cloned())
-}
 
 /// A clip of `n` frames of uniform noise in [0, 1) (a fixed generator, so runs compare).
 fn noise_clip(n: usize, h: usize, w: usize, seed: u64) -> HostClip {
@@ -110,13 +88,8 @@ fn main() {
         s.parse().expect("--step S")
     });
     let repeats: usize = arg(&args, "--repeats").map_or(1, |r| r.parse().expect("--repeats N"));
-    let base = match arg(&args, "--device").as_deref() {
-        None | Some("cpu") => Device::flex(),
-        Some("wgpu") => Device::wgpu(burn::tensor::DeviceKind::DefaultDevice),
-        #[cfg(feature = "cuda")]
-        Some("cuda") => Device::cuda(0),
-        Some(d) => panic!("--device {d}: use cpu, wgpu or cuda (with --features cuda)"),
-    };
+    let base = envision4d_model::bench::device(arg(&args, "--device").as_deref())
+        .unwrap_or_else(|e| panic!("{e}"));
     let checkpointing = args.iter().any(|a| a == "--checkpointing");
     let device = if checkpointing {
         base.autodiff().gradient_checkpointing()
