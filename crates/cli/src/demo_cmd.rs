@@ -174,6 +174,8 @@ pub fn run(args: DemoArgs) -> Result<()> {
     let device = args.backend.device()?;
     atomic::create_dir(&args.out)
         .map_err(|e| InputError(format!("--out {}: {e}", args.out.display())))?;
+    // One writer: two demos into one --out would mix their clips and reports.
+    let _lock = envision4d_data::lock::DirLock::acquire(&args.out, "--out")?;
 
     // Load + one unit per generated frame + evaluation + the render's own units.
     let units = 1 + synth.frames as u64 + 1 + render_cmd::progress_len(&setup.plan);

@@ -11,6 +11,7 @@ use crate::InputError;
 use anyhow::{Context, Result};
 use args::{parse_crop, AlignChoice, LayoutChoice, Protocol, SplitChoice};
 use clap::Args;
+use envision4d_data::lock::DirLock;
 use envision4d_data::{atomic, ClipDataset, Split};
 use envision4d_eval::sweep::{mark_pareto, plan, summarize, with_horizon, SweepBase};
 use envision4d_eval::{evaluate_dataset, summary, EvalOptions, Report, SweepPoint};
@@ -280,6 +281,8 @@ pub fn run(args: EvalArgs) -> Result<()> {
     opts.depth_alignment = args.depth_align.alignment();
     opts.motion_maps = args.motion_images > 0;
     atomic::create_dir(&args.out).map_err(|e| InputError(e.to_string()))?;
+    // One writer: two evals into one --out would mix their reports.
+    let _lock = DirLock::acquire(&args.out, "--out")?;
 
     warm_up(&model, &dataset, &indices, &opts, args.backend)?;
     let progress = bar(indices.len());

@@ -2,52 +2,9 @@
 //! checkpoints, `--resume` continues it, and bad input is an input error (exit 2) naming
 //! the key, value or path.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+mod common;
 
-fn bin(args: &[&str], cwd: &Path) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_envision4d"))
-        .args(args)
-        .current_dir(cwd)
-        .output()
-        .expect("envision4d runs")
-}
-
-fn text(o: &Output) -> String {
-    format!(
-        "{}{}",
-        String::from_utf8_lossy(&o.stdout),
-        String::from_utf8_lossy(&o.stderr)
-    )
-}
-
-/// A tiny stage-2 config (random init, exact labels, T_f = 2) on `data`, writing to `out`.
-fn write_config(dir: &Path, data: &Path, out: &Path) -> PathBuf {
-    let shipped = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../configs/synth-tiny.toml");
-    let text = std::fs::read_to_string(shipped).unwrap();
-    let mut cfg: toml::Table = toml::from_str(&text).unwrap();
-    cfg.remove("init_checkpoint");
-    cfg.insert("freeze".into(), toml::Value::Array(vec![]));
-    let set = |cfg: &mut toml::Table, table: &str, key: &str, v: toml::Value| {
-        cfg.get_mut(table)
-            .and_then(|t| t.as_table_mut())
-            .unwrap()
-            .insert(key.into(), v);
-    };
-    set(&mut cfg, "model", "future_frames", 2.into());
-    set(&mut cfg, "optim", "batch_size", 1.into());
-    set(&mut cfg, "optim", "iterations", 3.into());
-    set(&mut cfg, "progressive", "warmup_iterations", 1.into());
-    set(&mut cfg, "data", "root", data.display().to_string().into());
-    set(&mut cfg, "data", "stride", 1.into());
-    set(&mut cfg, "run", "out_dir", out.display().to_string().into());
-    set(&mut cfg, "run", "log_every", 1.into());
-    set(&mut cfg, "run", "checkpoint_every", 1.into());
-    set(&mut cfg, "run", "val_every", 2.into());
-    let path = dir.join("cfg.toml");
-    std::fs::write(&path, toml::to_string(&cfg).unwrap()).unwrap();
-    path
-}
+use common::{bin, text, write_config};
 
 /// Guards the run command's plumbing: `--stop-at` then `--resume` reach the configured
 /// iterations with one log record per step, checkpoints on disk and the final model written.
@@ -73,7 +30,7 @@ fn short_run_then_resume() {
     );
     assert!(synth.status.success(), "{}", text(&synth));
     let out = tmp.path().join("run");
-    let cfg = write_config(tmp.path(), &data, &out);
+    let cfg = write_config(tmp.path(), &data, &out, 3);
     let c = cfg.to_str().unwrap();
     let first = bin(&["train", "--config", c, "--stop-at", "2"], tmp.path());
     assert!(first.status.success(), "{}", text(&first));
@@ -103,7 +60,7 @@ fn short_run_then_resume() {
 fn bad_input_is_exit_2_naming_the_problem() {
     let tmp = tempfile::tempdir().unwrap();
     let missing = tmp.path().join("no-such-data");
-    let cfg = write_config(tmp.path(), &missing, &tmp.path().join("run"));
+    let cfg = write_config(tmp.path(), &missing, &tmp.path().join("run"), 3);
     let c = cfg.to_str().unwrap();
     let typo = tmp.path().join("typo.toml");
     std::fs::write(

@@ -52,6 +52,16 @@ pub enum DataError {
     EmptyClip { clip: String },
     #[error("{}: cannot write: {msg}", path.display())]
     Write { path: PathBuf, msg: String },
+    /// Another process holds the directory's lock ([`crate::lock::DirLock`]).
+    #[error(
+        "{key} {} is in use by another envision4d process ({holder}); wait for it to finish or choose another {key}",
+        dir.display()
+    )]
+    InUse {
+        key: &'static str,
+        dir: PathBuf,
+        holder: String,
+    },
 }
 
 pub type Result<T> = std::result::Result<T, DataError>;

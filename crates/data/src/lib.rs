@@ -16,6 +16,7 @@ pub mod frame;
 pub mod geom;
 pub mod host_clip;
 pub mod layout;
+pub mod lock;
 pub mod motion_truth;
 pub mod npy;
 pub mod prefetch;

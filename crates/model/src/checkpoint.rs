@@ -115,14 +115,50 @@ pub fn save_checkpoint(
         .remap(remap)
         .metadata(CONFIG_METADATA_KEY, json)
         .overwrite(true);
-    if let Err(e) = model.save_into(&mut store) {
+    let written = model
+        .save_into(&mut store)
+        .map_err(|e| format!("writing checkpoint: {e:?}"))
+        .and_then(|()| canonical_header(&tmp).map_err(|e| format!("writing checkpoint: {e}")));
+    if let Err(e) = written {
         let _ = std::fs::remove_file(&tmp);
-        return Err(err(format!("writing checkpoint: {e:?}")));
+        return Err(err(e));
     }
     std::fs::rename(&tmp, path).map_err(|e| {
         let _ = std::fs::remove_file(&tmp);
         err(format!("moving checkpoint into place: {e}"))
     })
+}
+
+/// Rewrites a safetensors header in place with its keys in sorted order. burn-store writes
+/// the metadata from a hash map, so two identical models gave files that differed in the
+/// header's key order; sorted, the same weights are the same bytes (a seed reproduces a
+/// file's checksum). Only the header is read and written: sorting keeps its length, and a
+/// shorter one is padded with spaces, as the format allows.
+fn canonical_header(path: &Path) -> std::io::Result<()> {
+    use std::io::{Read, Seek, SeekFrom, Write};
+    let bad = |m: String| std::io::Error::new(std::io::ErrorKind::InvalidData, m);
+    let mut f = std::fs::OpenOptions::new()
+        .read(true)
+        .write(true)
+        .open(path)?;
+    let mut len = [0u8; 8];
+    f.read_exact(&mut len)?;
+    let n = usize::try_from(u64::from_le_bytes(len)).map_err(|e| bad(e.to_string()))?;
+    let mut header = vec![0u8; n];
+    f.read_exact(&mut header)?;
+    // serde_json's map is ordered by key (no `preserve_order`): parsing sorts.
+    let value: serde_json::Value =
+        serde_json::from_slice(&header).map_err(|e| bad(format!("header: {e}")))?;
+    let mut sorted = serde_json::to_vec(&value).map_err(|e| bad(e.to_string()))?;
+    if sorted.len() > n {
+        return Err(bad(format!(
+            "sorted header grew from {n} to {} bytes",
+            sorted.len()
+        )));
+    }
+    sorted.resize(n, b' ');
+    f.seek(SeekFrom::Start(8))?;
+    f.write_all(&sorted)
 }
 
 fn temp_path(path: &Path) -> PathBuf {

@@ -24,7 +24,6 @@ pub mod freeze;
 pub mod grad_clip;
 pub mod init;
 pub mod load;
-pub mod lock;
 pub mod log;
 pub mod parallel;
 pub mod run;

@@ -8,14 +8,14 @@ use crate::checkpoint::{self, MODEL_FILE};
 use crate::config::{Purpose, Stage, Teacher, TrainConfig};
 use crate::dataset::{open_dataset, split};
 use crate::error::{Result, TrainError};
-use crate::lock::RunLock;
 use crate::log::JsonlLog;
 use crate::parallel::GradientReduce;
 use crate::step::{StepReport, Trainer};
 use crate::validate::{validate, ValReport};
 use burn::tensor::Device;
+use envision4d_data::lock::DirLock;
 use envision4d_data::split::epoch_order;
-use envision4d_data::{ClipDataset, HostClip, Prefetch, Split};
+use envision4d_data::{ClipDataset, DataError, HostClip, Prefetch, Split};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::Instant;
@@ -179,7 +179,10 @@ pub fn run(
     // cannot both pass them.
     std::fs::create_dir_all(&out)
         .map_err(|e| TrainError::invalid("run.out_dir", out.display(), e.to_string()))?;
-    let _lock = RunLock::acquire(&out)?;
+    let _lock = DirLock::acquire(&out, "run.out_dir").map_err(|e| match e {
+        DataError::Write { path, msg } => TrainError::write(path, msg),
+        other => TrainError::Unusable(other.to_string()),
+    })?;
     let resume_dir = match &opts.resume {
         Some(d) => Some(resolve_resume(d)?),
         None => {

@@ -4,6 +4,7 @@
 use crate::InputError;
 use anyhow::{Context, Result};
 use clap::{Args, ValueEnum};
+use envision4d_data::lock::DirLock;
 use envision4d_model::ModelConfig;
 use serde::Serialize;
 use std::collections::BTreeSet;
@@ -231,15 +232,19 @@ struct Entry {
 pub struct OutDir {
     root: PathBuf,
     entries: Vec<Entry>,
+    /// One writer: two renders into one --out would mix their files and manifests.
+    _lock: DirLock,
 }
 
 impl OutDir {
     pub fn create(root: &Path) -> Result<OutDir> {
         std::fs::create_dir_all(root)
             .map_err(|e| InputError(format!("--out {}: {e}", root.display())))?;
+        let lock = DirLock::acquire(root, "--out")?;
         Ok(OutDir {
             root: root.to_path_buf(),
             entries: Vec::new(),
+            _lock: lock,
         })
     }
 

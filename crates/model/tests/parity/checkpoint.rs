@@ -87,6 +87,44 @@ fn own_checkpoint_round_trip() {
     assert_eq!(leftovers.len(), 1, "{leftovers:?}");
 }
 
+/// Guards byte-reproducible checkpoints: burn-store writes the header's metadata from a hash
+/// map, so one model saved twice differed in key order; our header lists every key sorted,
+/// with the metadata intact, and a second save gives the same bytes.
+#[test]
+fn a_checkpoint_header_is_sorted_and_a_resave_is_byte_identical() {
+    let device = Device::flex();
+    let model = Envision4d::new(&ModelConfig::tiny(), &device);
+    let dir = tempfile::tempdir().unwrap();
+    let (a, b) = (
+        dir.path().join("a.safetensors"),
+        dir.path().join("b.safetensors"),
+    );
+    save_checkpoint(&model, &ModelConfig::tiny(), &a).unwrap();
+    save_checkpoint(&model, &ModelConfig::tiny(), &b).unwrap();
+    let bytes = std::fs::read(&a).unwrap();
+    assert!(bytes == std::fs::read(&b).unwrap(), "two saves differ");
+    let n = u64::from_le_bytes(bytes[..8].try_into().unwrap()) as usize;
+    let header = std::str::from_utf8(&bytes[8..8 + n]).unwrap();
+    let meta = ["envision4d_model_config", "format", "producer"].map(|k| {
+        header
+            .find(&format!("\"{k}\""))
+            .unwrap_or_else(|| panic!("{k} missing from the header"))
+    });
+    assert!(
+        meta.windows(2).all(|w| w[0] < w[1]),
+        "metadata unsorted: {header:.300}"
+    );
+    let st = safetensors::SafeTensors::deserialize(&bytes).unwrap();
+    let mut names = st.names();
+    names.sort();
+    let at: Vec<usize> = names
+        .iter()
+        .map(|k| header.find(&format!("\"{k}\":")).unwrap())
+        .collect();
+    assert!(at.windows(2).all(|w| w[0] < w[1]), "tensor keys unsorted");
+    assert_eq!(checkpoint_config(&a).unwrap(), Some(ModelConfig::tiny()));
+}
+
 fn write_subset(src: &Path, dst: &Path, keep: impl Fn(&str) -> bool, extra: &[&str]) {
     let bytes = std::fs::read(src).unwrap();
     let st = safetensors::SafeTensors::deserialize(&bytes).unwrap();

@@ -346,7 +346,7 @@ fn data_parallel_gradients_equal_single_device_gradients() {
 /// writing anything; once the holder is gone, the lock file it left behind does not block.
 #[test]
 fn a_locked_run_directory_is_refused() {
-    use envision4d_train::lock::RunLock;
+    use envision4d_data::lock::{DirLock, LOCK_FILE};
     let tmp = tempfile::tempdir().unwrap();
     let data = tmp.path().join("data");
     write_synth_dataset(&data, 4, 4);
@@ -355,7 +355,7 @@ fn a_locked_run_directory_is_refused() {
     cfg.optim.iterations = 1;
     let out = cfg.run.out_dir.clone();
     std::fs::create_dir_all(&out).unwrap();
-    let held = RunLock::acquire(&out).unwrap();
+    let held = DirLock::acquire(&out, "run.out_dir").unwrap();
     for resume in [None, Some(out.clone())] {
         let opts = RunOptions {
             resume,
@@ -375,6 +375,6 @@ fn a_locked_run_directory_is_refused() {
     }
     assert!(!out.join("config.toml").exists(), "a refused run wrote");
     drop(held);
-    assert!(out.join(envision4d_train::lock::LOCK_FILE).exists());
+    assert!(out.join(LOCK_FILE).exists());
     run(cfg, &device, RunOptions::default(), &mut Quiet).unwrap();
 }
