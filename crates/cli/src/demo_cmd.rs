@@ -13,6 +13,7 @@ mod print;
 use crate::backend_choice::BackendChoice;
 use crate::eval_cmd::shared::{self, Provenance};
 use crate::render_cmd::{self, OutDir, OutputArgs, Plan, Request};
+use crate::report::gallery::Gallery;
 use crate::InputError;
 use anyhow::{Context, Result};
 use burn::tensor::{Tensor, TensorData};
@@ -202,10 +203,16 @@ pub fn run(args: DemoArgs) -> Result<()> {
         .map_err(|e| ours(&e))?;
     // Window 0 is the clip's first T_c + T_f frames (the only window the demo writes).
     let indices = [0];
-    let opts = EvalOptions::new(cfg.context_frames, shared::lpips_status(None, &device)?);
+    let mut opts = EvalOptions::new(cfg.context_frames, shared::lpips_status(None, &device)?);
+    // The one clip is shown in report.html.
+    let mut gallery = Gallery::new(1);
+    (opts.clip_images, opts.motion_maps) = (true, true);
     shared::warm_up(&model, &dataset, &indices, &opts, args.backend).map_err(|e| ours(&e))?;
-    let run = evaluate_dataset(&model, &dataset, &indices, &opts, |_| bar.inc(1))
-        .map_err(|e| ours(&e))?;
+    let run = evaluate_dataset(&model, &dataset, &indices, &opts, |m| {
+        gallery.offer(m);
+        bar.inc(1)
+    })
+    .map_err(|e| ours(&e))?;
     if run.clips.is_empty() {
         // The clip was written a moment ago: failing to read it back is our bug, not input.
         anyhow::bail!(
@@ -221,7 +228,7 @@ pub fn run(args: DemoArgs) -> Result<()> {
         backend: args.backend,
     };
     let report = shared::build_report(from, cfg, &model, &opts, run, None);
-    let metrics = shared::write_outputs(&args.out, &report)?;
+    let metrics = shared::write_outputs(&args.out, &report, gallery)?;
 
     let clip = dataset.load(indices[0]).map_err(|e| ours(&e))?;
     let host = HostClip::from_clip(&clip).map_err(|e| ours(&e))?;

@@ -7,6 +7,7 @@ pub mod motion_images;
 pub mod shared;
 
 use crate::backend_choice::BackendChoice;
+use crate::report::gallery::Gallery;
 use crate::InputError;
 use anyhow::{Context, Result};
 use args::{parse_crop, AlignChoice, LayoutChoice, Protocol, SplitChoice};
@@ -45,7 +46,7 @@ pub struct EvalArgs {
     #[arg(long)]
     dataset_split: Option<String>,
     /// Output folder: metrics.json, metrics.md, metrics_vs_horizon.png, metrics_vs_time.png
-    /// (and pareto.png with --sweep).
+    /// (and pareto.png with --sweep), report.html with its images in report/.
     #[arg(long, default_value = "eval")]
     out: PathBuf,
     #[arg(long, value_enum, default_value_t = BackendChoice::Cpu)]
@@ -101,6 +102,11 @@ pub struct EvalArgs {
     /// newest context frame to the last future frame) and its .json sidecar.
     #[arg(long, default_value_t = 0)]
     motion_images: usize,
+    /// Clips shown in report.html (half the worst, half the best by the model's PSNR), each
+    /// as strips of ground truth | model | copy-last | static+cv per horizon with depth,
+    /// dynamic mask and motion panels; 0 = tables and plots only.
+    #[arg(long, default_value_t = crate::report::DEFAULT_CLIPS)]
+    report_clips: usize,
 }
 
 /// The horizon to score: `--future`, or the protocol's, checked against the checkpoint.
@@ -279,7 +285,9 @@ pub fn run(args: EvalArgs) -> Result<()> {
     opts.crop = args.crop.unwrap_or_default();
     opts.cross_frame_crop = args.cross_frame_crop;
     opts.depth_alignment = args.depth_align.alignment();
-    opts.motion_maps = args.motion_images > 0;
+    let mut gallery = Gallery::new(args.report_clips);
+    opts.motion_maps = args.motion_images > 0 || gallery.wants_images();
+    opts.clip_images = gallery.wants_images();
     atomic::create_dir(&args.out).map_err(|e| InputError(e.to_string()))?;
     // One writer: two evals into one --out would mix their reports.
     let _lock = DirLock::acquire(&args.out, "--out")?;
@@ -291,6 +299,7 @@ pub fn run(args: EvalArgs) -> Result<()> {
     let run = evaluate_dataset(&model, &dataset, &indices, &opts, |m| {
         progress.suspend(|| println!("{}", m.summary_line()));
         progress.inc(1);
+        gallery.offer(m);
         if let Some(pair) = m.motion_maps.take()
             && maps.len() < args.motion_images
         {
@@ -321,7 +330,7 @@ pub fn run(args: EvalArgs) -> Result<()> {
         backend: args.backend,
     };
     let report = build_report(from, cfg, &model, &opts, run, sweep);
-    shared::write_outputs(&args.out, &report)?;
+    shared::write_outputs(&args.out, &report, gallery)?;
     print_summary(&report, &args.out);
     Ok(())
 }
@@ -408,5 +417,8 @@ fn run_sweep(
 
 fn print_summary(report: &Report, out: &Path) {
     print!("{}", summary(report));
-    println!("wrote {}/metrics.json, metrics.md and plots", out.display());
+    println!(
+        "wrote {}/metrics.json, metrics.md, plots and report.html",
+        out.display()
+    );
 }

@@ -11,6 +11,7 @@ mod image_out;
 mod model_config;
 mod plot;
 mod render_cmd;
+mod report;
 mod splat_cmd;
 mod synth_cmd;
 mod train_cmd;

@@ -16,6 +16,7 @@
 //! validation calls [`score`] with a model on a plain (non-autodiff) device.
 
 pub mod baselines;
+pub mod clip_images;
 pub mod cross_frame;
 pub mod depth_eval;
 pub mod error;
@@ -78,6 +79,9 @@ pub struct EvalOptions {
     /// Keep each clip's per-pixel motion maps (`motion_maps`) in
     /// [`ClipMetrics::motion_maps`], where the clip has motion truth.
     pub motion_maps: bool,
+    /// Keep each clip's future frames, baselines, depth and masks in
+    /// [`ClipMetrics::images`] (the HTML report's strips).
+    pub clip_images: bool,
 }
 
 impl EvalOptions {
@@ -107,6 +111,7 @@ impl EvalOptions {
             input_size: None,
             extent: Extent::Full,
             motion_maps: false,
+            clip_images: false,
         }
     }
 }

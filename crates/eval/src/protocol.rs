@@ -9,6 +9,7 @@
 use crate::baselines::{
     clip_images, constant_intrinsics, constant_velocity_poses, copy_last_images, copy_last_poses,
 };
+use crate::clip_images::ClipImages;
 use crate::cross_frame::cross_frame;
 use crate::depth_eval::{depth_score, upsample_nearest, DepthTruth};
 use crate::error::{EvalError, Result};
@@ -100,7 +101,7 @@ pub fn evaluate_clip(
     )?];
     let (mut context, mut depth, mut context_depth, mut context_decoder_s) =
         (None, None, None, None);
-    let (mut motion, mut motion_maps) = (None, None);
+    let (mut motion, mut motion_maps, mut images) = (None, None, None);
     if opts.extent == Extent::Full {
         let targets: Vec<usize> = (0..tc).collect();
         let gt_context = clip_images(clip, &targets)?;
@@ -110,14 +111,21 @@ pub fn evaluate_clip(
         depth = rendered_depth_score(&rendered, clip, &future, opts)?;
         context_depth = head_depth_score(&scene, clip, tc, opts)?;
         let truth = motion_truth_score(&scene, clip, tc, n, input, &pred_poses, opts);
-        methods.extend(baselines(
-            &scene,
-            clip,
-            &scorer,
-            &pred_poses,
-            &intr,
-            encoder_s,
-        )?);
+        let (scores, [copy, cv]) = baselines(&scene, clip, &scorer, &pred_poses, &intr, encoder_s)?;
+        methods.extend(scores);
+        if opts.clip_images {
+            images = Some(ClipImages {
+                context: tc,
+                ground_truth: gt_future.clone(),
+                methods: vec![
+                    (Method::Model, rendered.images.clone()),
+                    (Method::CopyLast, copy),
+                    (Method::StaticCv, cv),
+                ],
+                depth: HostDepths::from_tensor("rendered depth", rendered.depth.clone())?,
+                dynamic_masks: scorer.masks.iter().map(|m| m.cloned()).collect(),
+            });
+        }
         if let Some(oracle) = truth.oracle {
             let f = &future;
             for o in oracle_renders(&scene, oracle, clip, &extr, &intr, &pred_poses, f, opts)? {
@@ -139,10 +147,12 @@ pub fn evaluate_clip(
         context_depth_rmse: context_depth,
         motion,
         motion_maps,
+        images,
     })
 }
 
-/// The three baselines of [`crate::baselines`], scored like the model.
+/// The three baselines of [`crate::baselines`], scored like the model; with the frames of
+/// copy-last and static+cv (the report shows them).
 fn baselines(
     scene: &Scene,
     clip: &HostClip,
@@ -150,7 +160,7 @@ fn baselines(
     pred_poses: &[Mat4],
     intr: &Tensor<4>,
     encoder_s: f64,
-) -> Result<Vec<MethodScore>> {
+) -> Result<(Vec<MethodScore>, [HostImages; 2])> {
     let (tc, opts) = (scorer.context, scorer.opts);
     let tf = pred_poses.len() - tc;
     let size = [clip.height, clip.width];
@@ -172,11 +182,12 @@ fn baselines(
     let own_extr = extrinsics_tensor(pred_poses, &device);
     let (nm, nm_s) = timed_render(&still.adapted, &own_extr, intr, &future, size, opts, own)?;
 
-    Ok(vec![
+    let scores = vec![
         scorer.score(Method::CopyLast, &copy, &copy_poses, copy_s)?,
         scorer.score(Method::StaticCv, &cv.images, &cv_poses, encoder_s + cv_s)?,
         scorer.score(Method::NoMotion, &nm.images, pred_poses, encoder_s + nm_s)?,
-    ])
+    ];
+    Ok((scores, [copy, cv.images]))
 }
 
 /// Scores future frames and poses of any method against one clip's ground truth.

@@ -169,6 +169,9 @@ pub struct ClipMetrics {
     /// Per-pixel motion of one pair (`EvalOptions::motion_maps`); never in the JSON.
     #[serde(skip)]
     pub motion_maps: Option<crate::motion_maps::PairMaps>,
+    /// The future frames behind the numbers (`EvalOptions::clip_images`); never in the JSON.
+    #[serde(skip)]
+    pub images: Option<crate::clip_images::ClipImages>,
 }
 
 impl ClipMetrics {
@@ -305,6 +308,7 @@ pub fn mean_metrics(clips: &[ClipMetrics]) -> Option<ClipMetrics> {
                 .collect::<Vec<_>>(),
         ),
         motion_maps: None,
+        images: None,
     })
 }
 

@@ -59,7 +59,7 @@ fn enlarge(width: usize, height: usize, rgb: &[f32], factor: usize) -> Vec<f32> 
 }
 
 /// A clip id as a file name (`clip_000003@0` → `clip_000003_0`).
-fn file_stem(clip: &str) -> String {
+pub fn file_stem(clip: &str) -> String {
     clip.chars()
         .map(|c| {
             if c.is_ascii_alphanumeric() || c == '-' || c == '_' {
@@ -71,6 +71,22 @@ fn file_stem(clip: &str) -> String {
         .collect()
 }
 
+/// Integer enlargement of `m`'s panels.
+fn enlargement(m: &PairMaps) -> usize {
+    MIN_PANEL_HEIGHT.div_ceil(m.size.0.max(1)).max(1)
+}
+
+/// Writes `m`'s three panels (enlarged) as one PNG at `path`; returns the colour scale's
+/// top (metres).
+pub fn motion_panel(path: &Path, m: &PairMaps) -> Result<f32> {
+    let scale = m.scale_max(SCALE_FLOOR_M);
+    let (width, rgb) = panels(m, scale);
+    let factor = enlargement(m);
+    let rgb = enlarge(width, m.size.0, &rgb, factor);
+    write_rgb(path, width * factor, m.size.0 * factor, &rgb)?;
+    Ok(scale)
+}
+
 /// Writes the images of `maps` (clip id, maps); returns how many were written.
 pub fn write_motion_images(out: &Path, maps: &[(String, PairMaps)]) -> Result<usize> {
     let dir = out.join(MOTION_IMAGES_DIR);
@@ -80,13 +96,9 @@ pub fn write_motion_images(out: &Path, maps: &[(String, PairMaps)]) -> Result<us
             envision4d_data::atomic::create_dir(&dir)
                 .with_context(|| format!("creating {}", dir.display()))?;
         }
-        let scale = m.scale_max(SCALE_FLOOR_M);
         let stem = format!("{}_{}to{}", file_stem(clip), m.source, m.target);
-        let (width, rgb) = panels(m, scale);
-        let factor = MIN_PANEL_HEIGHT.div_ceil(m.size.0.max(1)).max(1);
-        let rgb = enlarge(width, m.size.0, &rgb, factor);
-        let path = dir.join(format!("{stem}.png"));
-        write_rgb(&path, width * factor, m.size.0 * factor, &rgb)?;
+        let scale = motion_panel(&dir.join(format!("{stem}.png")), m)?;
+        let factor = enlargement(m);
         let side = serde_json::json!({
             "clip": clip,
             "source": m.source,

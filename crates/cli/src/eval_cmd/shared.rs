@@ -4,6 +4,7 @@
 
 use crate::backend_choice::BackendChoice;
 use crate::plot;
+use crate::report::gallery::Gallery;
 use crate::InputError;
 use anyhow::{Context, Result};
 use burn::tensor::Device;
@@ -121,9 +122,10 @@ pub fn build_report(
     }
 }
 
-/// Writes `metrics.json`, `metrics.md`, the two plots and (with a sweep) `pareto.png` into
-/// `out` atomically; returns the paths written, in that order.
-pub fn write_outputs(out: &Path, report: &Report) -> Result<Vec<PathBuf>> {
+/// Writes `metrics.json`, `metrics.md`, the two plots, (with a sweep) `pareto.png` and
+/// `report.html` (with `gallery`'s clips) into `out` atomically; returns the paths written,
+/// in that order.
+pub fn write_outputs(out: &Path, report: &Report, gallery: Gallery) -> Result<Vec<PathBuf>> {
     atomic::create_dir(out).map_err(|e| InputError(e.to_string()))?;
     let mut written = Vec::new();
     let mut write = |name: &str, bytes: &[u8]| -> Result<()> {
@@ -132,13 +134,16 @@ pub fn write_outputs(out: &Path, report: &Report) -> Result<Vec<PathBuf>> {
         written.push(path);
         Ok(())
     };
+    let md = markdown(report);
     write(METRICS_JSON, report.to_json().as_bytes())?;
-    write(METRICS_MD, markdown(report).as_bytes())?;
+    write(METRICS_MD, md.as_bytes())?;
     let png = |r: Result<Vec<u8>, String>| r.map_err(anyhow::Error::msg);
     write(HORIZON_PNG, &png(plot::horizon_png(report.mean.as_ref()))?)?;
     write(TIME_PNG, &png(plot::time_png(report))?)?;
     if let Some(points) = &report.sweep {
         write(PARETO_PNG, &png(plot::pareto_png(points))?)?;
     }
+    let page = crate::report::write_report(out, report, &md, &written[2..], gallery)?;
+    written.push(page);
     Ok(written)
 }
