@@ -58,7 +58,9 @@ pub struct EvalArgs {
     /// Score at most this many clips (dataset order).
     #[arg(long)]
     max_clips: Option<usize>,
-    /// LPIPS (VGG) weights in safetensors; without them LPIPS is reported as null.
+    /// LPIPS (VGG) weights: torchvision's backbone and the lpips package's lin layers as
+    /// `vgg16-397923af.pth,vgg.pth`, or one file with the package's names (safetensors from
+    /// scripts/export_lpips_weights.py, or .pth); without them LPIPS is reported as null.
     #[arg(long)]
     lpips_weights: Option<PathBuf>,
     /// Border crop before every metric: TOP,BOTTOM,LEFT,RIGHT (the release's main config: 6,6,10,6).

@@ -153,7 +153,12 @@ fn dry_run(
     ];
     for (key, path) in files {
         if let Some(p) = path {
-            let state = if p.exists() { "found" } else { "MISSING" };
+            // loss.lpips_weights may name two files, `A,B`.
+            let found = p.exists()
+                || p.to_string_lossy()
+                    .split(',')
+                    .all(|part| Path::new(part.trim()).exists());
+            let state = if found { "found" } else { "MISSING" };
             println!("{key}: {} ({state})", p.display());
         }
     }

@@ -103,7 +103,8 @@ pub struct LossConfig {
     /// loss). A stand-in for LPIPS where its VGG weights are not available: MSE alone
     /// hardly penalises the blur a model uses to hedge uncertain motion.
     pub lambda_ssim: f64,
-    /// LPIPS (VGG) weights in safetensors; required when `lambda_lpips > 0`.
+    /// LPIPS (VGG) weights, as `--lpips-weights` takes them (`BACKBONE.pth,LINS.pth` or one
+    /// file with the package's names); required when `lambda_lpips > 0`.
     pub lpips_weights: Option<PathBuf>,
 }
 

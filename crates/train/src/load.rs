@@ -224,7 +224,7 @@ pub fn validate(cfg: &TrainConfig) -> Result<()> {
         return Err(TrainError::invalid(
             "loss.lambda_lpips",
             l.lambda_lpips,
-            "needs loss.lpips_weights (LPIPS-VGG safetensors); set lambda_lpips = 0 to train without LPIPS",
+            "needs loss.lpips_weights (torchvision's vgg16 .pth and the lpips package's vgg.pth as \"A,B\", or one exported file); set lambda_lpips = 0 to train without LPIPS",
         ));
     }
     let p = &cfg.progressive;

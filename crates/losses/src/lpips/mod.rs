@@ -14,6 +14,8 @@
 //! [`LpipsStatus::Unavailable`] and is never computed with random weights.
 
 mod arch;
+mod files;
+mod weight_file;
 mod weights;
 
 use std::path::Path;
@@ -43,7 +45,7 @@ const NORM_SQ_FLOOR: f64 = 1e-30;
 
 /// Hint printed with every "LPIPS unavailable" message.
 pub const LPIPS_WEIGHTS_HINT: &str =
-    "produce a weights file with scripts/export_lpips_weights.py (needs torchvision's pretrained weights)";
+    "give torchvision's vgg16-397923af.pth and the lpips package's weights/v0.1/vgg.pth as BACKBONE,LINS, or a file from scripts/export_lpips_weights.py";
 
 /// A conv layer on the device.
 #[derive(Debug, Clone)]
@@ -119,10 +121,11 @@ impl Lpips {
         }
     }
 
-    /// Load a weights file written by `scripts/export_lpips_weights.py`, in f32.
-    pub fn load(path: &Path, net: LpipsNet, device: &Device) -> Result<Self> {
+    /// Load what `spec` names ([`LpipsWeights::from_spec`]: one file with the package's
+    /// names, or torchvision's backbone `.pth` and the package's lin `.pth` as `A,B`), in f32.
+    pub fn load(spec: &Path, net: LpipsNet, device: &Device) -> Result<Self> {
         Ok(Self::new(
-            &LpipsWeights::from_safetensors(path, net)?,
+            &LpipsWeights::from_spec(spec, net)?,
             device,
             DType::F32,
         ))

@@ -1,11 +1,11 @@
-//! LPIPS weights on the host, read from a safetensors file by the `lpips` package's
-//! state_dict names (see `scripts/export_lpips_weights.py`).
+//! LPIPS weights on the host, read by the `lpips` package's state_dict names from a
+//! safetensors file (`scripts/export_lpips_weights.py`) or a PyTorch `.pth` with those names;
+//! `files.rs` reads the torchvision backbone and the package's lin file as they ship.
 
 use std::path::{Path, PathBuf};
 
-use burn::store::{ModuleStore, SafetensorsStore};
-
 use super::arch::{conv_key, lin_key, LpipsNet, LPIPS_LAYERS};
+use super::weight_file::WeightFile;
 use crate::error::{LossError, Result};
 
 /// The package's `ScalingLayer.shift` (ImageNet mean mapped to [−1, 1]).
@@ -226,7 +226,7 @@ pub fn read_lin_layers(path: &Path, prefix: &str) -> Result<Vec<HostTensor>> {
     read_lins_from(&mut file, prefix)
 }
 
-fn read_lins_from(file: &mut WeightFile, prefix: &str) -> Result<Vec<HostTensor>> {
+pub(super) fn read_lins_from(file: &mut WeightFile, prefix: &str) -> Result<Vec<HostTensor>> {
     (0..LPIPS_LAYERS)
         .map(|k| file.get(&format!("{prefix}{}", lin_key(k))))
         .collect()
@@ -244,60 +244,5 @@ fn with_path(e: LossError, path: &Path) -> LossError {
             expected,
         },
         other => other,
-    }
-}
-
-/// A safetensors file read through burn-store.
-struct WeightFile {
-    path: PathBuf,
-    store: SafetensorsStore,
-}
-
-impl WeightFile {
-    fn open(path: &Path) -> Result<Self> {
-        if !path.is_file() {
-            return Err(LossError::WeightsFile {
-                path: path.to_path_buf(),
-                reason: "no such file".into(),
-            });
-        }
-        let mut store = SafetensorsStore::from_file(path);
-        // Parse the header now so a corrupt file fails here, naming the file.
-        store.keys().map_err(|e| LossError::WeightsFile {
-            path: path.to_path_buf(),
-            reason: e.to_string(),
-        })?;
-        Ok(Self {
-            path: path.to_path_buf(),
-            store,
-        })
-    }
-
-    fn get(&mut self, key: &str) -> Result<HostTensor> {
-        self.get_opt(key)?.ok_or_else(|| LossError::MissingKey {
-            path: self.path.clone(),
-            key: key.to_owned(),
-        })
-    }
-
-    fn get_opt(&mut self, key: &str) -> Result<Option<HostTensor>> {
-        let path = self.path.clone();
-        let fail = |reason: String| LossError::WeightsFile {
-            path: path.clone(),
-            reason: format!("tensor `{key}`: {reason}"),
-        };
-        let Some(t) = self
-            .store
-            .get_tensor(key)
-            .map_err(|e| fail(e.to_string()))?
-        else {
-            return Ok(None);
-        };
-        let data = burn::store::bridge::to_data(t).map_err(|e| fail(format!("{e:?}")))?;
-        let shape = data.shape().to_vec();
-        let data = data
-            .try_into_vec_as::<f32>()
-            .map_err(|e| fail(format!("{e:?}")))?;
-        Ok(Some(HostTensor { shape, data }))
     }
 }

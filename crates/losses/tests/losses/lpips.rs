@@ -209,3 +209,119 @@ fn export_layout_file_loads_and_matches_fixture() {
         "{err}"
     );
 }
+
+/// `tensors` as a PyTorch `.pth` (a bare state_dict, `torch.save`'s zip layout) written by
+/// `scripts/make_lightning_ckpt.py --plain`, standard-library Python, no torch.
+fn write_pth(
+    dir: &Path,
+    name: &str,
+    tensors: &[(String, Vec<usize>, Vec<f32>)],
+) -> std::path::PathBuf {
+    use crate::common::write_safetensors;
+    let st = dir.join(format!("{name}.safetensors"));
+    write_safetensors(&st, tensors);
+    let pth = dir.join(format!("{name}.pth"));
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scripts/make_lightning_ckpt.py");
+    let ok = std::process::Command::new("python3")
+        .arg(script)
+        .arg(&st)
+        .arg(&pth)
+        .arg("--plain")
+        .status()
+        .expect("python3 is needed to write the test .pth files");
+    assert!(ok.success());
+    pth
+}
+
+/// The fixture's VGG weights split as they ship: torchvision's backbone
+/// (`features.{i}.weight/bias`, no scaling layer) and the lpips package's lin file.
+fn torchvision_and_lins(dir: &Path) -> (std::path::PathBuf, std::path::PathBuf) {
+    use crate::common::export_layout;
+    let all = export_layout(
+        &fixture_vgg_weights(),
+        envision4d_losses::lpips::SCALING_SHIFT,
+    );
+    let mut backbone = Vec::new();
+    let mut lins = Vec::new();
+    for (key, shape, data) in all {
+        if let Some(rest) = key.strip_prefix("net.slice") {
+            let index_part = rest.split_once('.').unwrap().1;
+            backbone.push((format!("features.{index_part}"), shape, data));
+        } else if key.starts_with("lin") && !key.starts_with("lins.") {
+            lins.push((key, shape, data));
+        }
+    }
+    (
+        write_pth(dir, "vgg16", &backbone),
+        write_pth(dir, "vgg", &lins),
+    )
+}
+
+/// Guards LPIPS from the files users have: torchvision's `vgg16-397923af.pth` layout plus
+/// the lpips package's lin `.pth`, named `A,B` in either order, load to exactly the
+/// fixture's weights and give the same LPIPS as the safetensors path (the official values).
+#[test]
+fn torchvision_and_lpips_pth_files_load_like_the_safetensors() {
+    use crate::common::{fixture_images, read};
+    let dir = tempfile::tempdir().unwrap();
+    let (backbone, lins) = torchvision_and_lins(dir.path());
+    let want = fixture_vgg_weights();
+    for spec in [
+        format!("{},{}", backbone.display(), lins.display()),
+        format!("{}, {}", lins.display(), backbone.display()),
+    ] {
+        let got = LpipsWeights::from_spec(Path::new(&spec), LpipsNet::Vgg).unwrap();
+        assert_eq!(got, want, "{spec}");
+    }
+    let spec = format!("{},{}", backbone.display(), lins.display());
+    let status =
+        LpipsStatus::from_path(Some(Path::new(&spec)), LpipsNet::Vgg, &Device::flex()).unwrap();
+    let got = status
+        .require()
+        .unwrap()
+        .distance_host(
+            &fixture_images("input/ground_truth"),
+            &fixture_images("input/predicted"),
+        )
+        .unwrap();
+    let (expected, _) = read(&fixture(), "expected/lpips");
+    for (g, w) in got.iter().zip(&expected) {
+        assert!((g - w).abs() <= 1e-5 * w, "{g} vs {w}");
+    }
+    // Two backbones: the missing lin layer is named with the file.
+    let err = LpipsWeights::from_spec(
+        Path::new(&format!("{},{}", backbone.display(), backbone.display())),
+        LpipsNet::Vgg,
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(
+        err.contains("lin0.model.1.weight") && err.contains("vgg16.pth"),
+        "{err}"
+    );
+}
+
+/// Guards reading the lpips package's real `weights/v0.1/vgg.pth` (a legacy, pre-zip
+/// `torch.save` pickle): its lin layers are exactly the fixture's. `.ci/run` installs the
+/// package without torch (`pip install --no-deps lpips`); the test finds it through Python.
+#[test]
+fn the_lpips_package_vgg_pth_is_read_as_shipped() {
+    let out = std::process::Command::new("python3")
+        .args([
+            "-c",
+            "import importlib.util as u; s = u.find_spec('lpips'); print(s.submodule_search_locations[0] if s else '')",
+        ])
+        .output()
+        .expect("python3 runs");
+    let root = String::from_utf8_lossy(&out.stdout).trim().to_owned();
+    assert!(
+        !root.is_empty(),
+        "the lpips package is not installed: pip install --no-deps lpips (.ci/run does)"
+    );
+    let real = Path::new(&root).join("weights/v0.1/vgg.pth");
+    let dir = tempfile::tempdir().unwrap();
+    let (backbone, _) = torchvision_and_lins(dir.path());
+    let spec = format!("{},{}", backbone.display(), real.display());
+    let got = LpipsWeights::from_spec(Path::new(&spec), LpipsNet::Vgg).unwrap();
+    assert_eq!(got.lins, fixture_vgg_weights().lins);
+}
