@@ -1,11 +1,10 @@
 //! The evaluation plots (PNG): every metric against the future horizon, every metric
-//! against the time spent per clip, and the sweep's Pareto front. Drawn with the `image`
-//! crate and a built-in bitmap font ([`font`]), so no system font is needed.
+//! against the time spent per clip, and the sweep's Pareto front. Drawn with `plotters`
+//! in an embedded font ([`chart`]), so no system font is needed.
 
-mod canvas;
-mod font;
+mod chart;
 
-use canvas::{Draw, Panel, Series, XTicks};
+use chart::{Draw, Panel, Series, XTicks};
 use envision4d_eval::{ClipMetrics, HorizonScore, Method, MethodScore, Report, SweepPoint};
 use std::io::Cursor;
 
@@ -43,13 +42,13 @@ const METRICS: [Metric; 5] = [
         sweep: |p| p.lpips,
     },
     Metric {
-        title: "ROTATION ERROR (DEG)",
+        title: "Rotation error (deg)",
         horizon: |h| h.rot_err_deg,
         method: |m| m.rot_err_deg,
         sweep: |p| p.rot_err_deg,
     },
     Metric {
-        title: "TRANSLATION ERROR (M)",
+        title: "Translation error (m)",
         horizon: |h| h.trans_err,
         method: |m| m.trans_err,
         sweep: |p| p.trans_err,
@@ -71,8 +70,8 @@ pub fn horizon_png(mean: Option<&ClipMetrics>) -> Result<Vec<u8>, String> {
     let panels = METRICS
         .iter()
         .map(|metric| Panel {
-            title: format!("{} VS HORIZON", metric.title),
-            x_label: "FUTURE HORIZON (FRAMES)".into(),
+            title: format!("{} vs horizon", metric.title),
+            x_label: "future horizon (frames)".into(),
             x_ticks: XTicks::Integer,
             series: methods
                 .iter()
@@ -126,8 +125,8 @@ pub fn time_png(report: &Report) -> Result<Vec<u8>, String> {
                 series.extend(sweep_series(points, metric));
             }
             Panel {
-                title: format!("{} VS TIME", metric.title),
-                x_label: "SECONDS PER CLIP (ENCODER + DECODER)".into(),
+                title: format!("{} vs time", metric.title),
+                x_label: "seconds per clip (encoder + decoder)".into(),
                 x_ticks: XTicks::Continuous,
                 series,
             }
@@ -145,8 +144,8 @@ pub fn pareto_png(points: &[SweepPoint]) -> Result<Vec<u8>, String> {
             let mut series = sweep_series(points, metric);
             series[0].labels = points.iter().map(|p| p.value.clone()).collect();
             Panel {
-                title: format!("{} VS TIME (SWEEP)", metric.title),
-                x_label: "SECONDS PER CLIP (ENCODER + DECODER)".into(),
+                title: format!("{} vs time (sweep)", metric.title),
+                x_label: "seconds per clip (encoder + decoder)".into(),
                 x_ticks: XTicks::Continuous,
                 series,
             }
@@ -181,7 +180,7 @@ fn sweep_series(points: &[SweepPoint], metric: &Metric) -> Vec<Series> {
 }
 
 fn encode(panels: Vec<Panel>) -> Result<Vec<u8>, String> {
-    let img = canvas::render(&panels, COLUMNS);
+    let img = chart::render(&panels, COLUMNS)?;
     let mut bytes = Cursor::new(Vec::new());
     img.write_to(&mut bytes, image::ImageFormat::Png)
         .map_err(|e| format!("PNG encoding failed: {e}"))?;
