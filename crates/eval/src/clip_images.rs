@@ -3,7 +3,9 @@
 //! frame, the two image baselines' frames, the model's rendered depth and the true dynamic
 //! mask. Host copies, so a caller can keep a few clips' worth after the device is reused.
 
+use crate::error::Result;
 use crate::report::Method;
+use burn::tensor::Tensor;
 use envision4d_losses::{HostDepths, HostImages};
 
 /// Images of one clip's future frames (all `[T_f, 3, H, W]` in `[0, 1]`-ish linear RGB).
@@ -21,6 +23,29 @@ pub struct ClipImages {
 }
 
 impl ClipImages {
+    /// `frames`: the model's, copy-last's and static+cv's future frames, in that order;
+    /// `depth` the model's rendered depth `[T_f, H, W]` on the device.
+    pub fn new(
+        context: usize,
+        ground_truth: &HostImages,
+        frames: [HostImages; 3],
+        depth: &Tensor<3>,
+        dynamic_masks: Vec<Option<Vec<bool>>>,
+    ) -> Result<Self> {
+        let [model, copy, cv] = frames;
+        Ok(ClipImages {
+            context,
+            ground_truth: ground_truth.clone(),
+            methods: vec![
+                (Method::Model, model),
+                (Method::CopyLast, copy),
+                (Method::StaticCv, cv),
+            ],
+            depth: HostDepths::from_tensor("rendered depth", depth.clone())?,
+            dynamic_masks,
+        })
+    }
+
     /// Number of future frames.
     pub fn frames(&self) -> usize {
         self.ground_truth.shape()[0]

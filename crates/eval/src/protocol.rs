@@ -114,17 +114,15 @@ pub fn evaluate_clip(
         let (scores, [copy, cv]) = baselines(&scene, clip, &scorer, &pred_poses, &intr, encoder_s)?;
         methods.extend(scores);
         if opts.clip_images {
-            images = Some(ClipImages {
-                context: tc,
-                ground_truth: gt_future.clone(),
-                methods: vec![
-                    (Method::Model, rendered.images.clone()),
-                    (Method::CopyLast, copy),
-                    (Method::StaticCv, cv),
-                ],
-                depth: HostDepths::from_tensor("rendered depth", rendered.depth.clone())?,
-                dynamic_masks: scorer.masks.iter().map(|m| m.cloned()).collect(),
-            });
+            let masks = scorer.masks.iter().map(|m| m.cloned()).collect();
+            let frames = [rendered.images.clone(), copy, cv];
+            images = Some(ClipImages::new(
+                tc,
+                &gt_future,
+                frames,
+                &rendered.depth,
+                masks,
+            )?);
         }
         if let Some(oracle) = truth.oracle {
             let f = &future;

@@ -164,8 +164,8 @@ fn draw_panel(area: &Area<'_>, panel: &Panel) -> DrawResult {
         return Ok(());
     };
     let (x0, x1) = match panel.x_ticks {
-        // Whole horizons: half a step of room on each side.
-        XTicks::Integer => (x0.floor().min(x0 + 0.5) - 0.0, x1.ceil().max(x1 - 0.5)),
+        // Whole numbers at both ends, so the ticks fall on the horizons.
+        XTicks::Integer => (x0.floor(), x1.ceil()),
         XTicks::Continuous => (x0, x1),
     };
     let mut chart = ChartBuilder::on(&plot)
