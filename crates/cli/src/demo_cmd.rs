@@ -210,7 +210,7 @@ pub fn run(args: DemoArgs) -> Result<()> {
     shared::warm_up(&model, &dataset, &indices, &opts, args.backend).map_err(|e| ours(&e))?;
     let run = evaluate_dataset(&model, &dataset, &indices, &opts, |m| {
         gallery.offer(m);
-        bar.inc(1)
+        bar.inc(1);
     })
     .map_err(|e| ours(&e))?;
     if run.clips.is_empty() {

@@ -126,7 +126,7 @@ fn font_registered() -> Result<(), String> {
     static DONE: OnceLock<Result<(), String>> = OnceLock::new();
     DONE.get_or_init(|| {
         register_font(FONT, FontStyle::Normal, FONT_BYTES)
-            .map_err(|_| "the embedded plot font is invalid".to_string())
+            .map_err(|_| "the embedded plot font is invalid".to_owned())
     })
     .clone()
 }

@@ -67,9 +67,12 @@ impl Gallery {
         }
     }
 
-    /// Worst first, then best from the best down.
+    /// Worst first, then best from the best down; a single clip is neither (`only`).
     pub fn into_ordered(self) -> Vec<(&'static str, Shown)> {
         let mut clips = self.clips;
+        if clips.len() == 1 {
+            return clips.into_iter().map(|c| ("only", c)).collect();
+        }
         // Fewer clips than `keep`: the lower half is still "worst".
         let worst = clips.len() / 2;
         let best: Vec<Shown> = clips.drain(worst..).rev().collect();
@@ -127,6 +130,6 @@ mod tests {
             .map(|(k, s)| (k, s.clip))
             .collect();
         let want = [("worst", "a"), ("worst", "b"), ("best", "g"), ("best", "f")];
-        assert_eq!(got, want.map(|(k, c)| (k, c.to_string())));
+        assert_eq!(got, want.map(|(k, c)| (k, c.to_owned())));
     }
 }

@@ -29,7 +29,7 @@ padding:0 .2em}.plots img{max-width:48%;margin:.3em}.strip td{text-align:center;
 .strip img{width:13em;height:auto;image-rendering:pixelated;display:block}\
 .panel{width:40em;max-width:100%;height:auto;image-rendering:pixelated}\
 .tag{font-size:.7em;padding:.1em .5em;border-radius:.8em;color:#fff;vertical-align:middle}\
-.worst{background:#b3261e}.best{background:#1e6b3a}section.clip{margin:1.5em 0}";
+.worst{background:#b3261e}.best{background:#1e6b3a}.only{background:#5b5b66}section.clip{margin:1.5em 0}";
 
 /// Writes the shown clips' images and `out/report.html` (atomically); `markdown` is the
 /// text of `metrics.md`, `plots` the PNGs written beside it. Returns the page's path.
