@@ -5,6 +5,7 @@
 #   SEEDS="0" VARIANTS="cml linear-velocity" scripts/motion_bench.sh   # a part of it
 #   SMOKE=1 scripts/motion_bench.sh              # every stage for a few steps (CI, minutes)
 #   BASE=shipped scripts/motion_bench.sh         # the variants on the shipped reconstruction
+#   LENGTH=5 BASE=shipped scripts/motion_bench.sh   # every schedule 5x longer (own runs dir)
 #
 # BASE=backbone (default) trains a stage-1 backbone on the suite at 112x168 and every variant
 # from it. BASE=shipped skips stage 1: every variant starts from the shipped model
@@ -41,6 +42,15 @@ case "$BASE" in
   shipped) SIZE=${SIZE:-56x84} DATA="$ROOT/data/motion-56x84" RUNS="$ROOT/runs/motion-shipped" ;;
   *) echo "BASE must be backbone or shipped, not '$BASE'" >&2; exit 2 ;;
 esac
+# Schedule length: iterations, warm-up and S_max of every stage-2 config times LENGTH; a
+# longer schedule gets its own runs folder (runs/motion-shipped-x5), so runs never mix.
+LENGTH=${LENGTH:-1}
+case "$LENGTH" in
+  ''|*[!0-9]*|0) echo "LENGTH must be a whole number >= 1, not '$LENGTH'" >&2; exit 2 ;;
+esac
+if [ "$LENGTH" != 1 ]; then
+  RUNS="$RUNS-x$LENGTH"
+fi
 SEEDS=${SEEDS:-"0 1 2"}
 VARIANTS=${VARIANTS:-"cml motion-off linear-velocity no-temporal post-layer"}
 PRESETS=${PRESETS:-"motion-constant motion-accelerating motion-turning motion-crossing motion-stop-and-go"}
@@ -84,6 +94,16 @@ config() {
       -e "s#^image_size = .*#image_size = [$h, $w]#" \
       -e "s#^out_dir = .*#out_dir = \"$RUNS/$name\"#" \
       "$CONFIGS/$name.toml" > "$out"
+  if [ "$LENGTH" != 1 ] && [ "$name" != backbone ]; then
+    python3 - "$out" "$LENGTH" <<'PY'
+import re, sys
+path, k = sys.argv[1], int(sys.argv[2])
+text = open(path).read()
+for key in ("iterations", "warmup_iterations", "s_max"):
+    text = re.sub(rf"(?m)^{key} = (\d+)", lambda m: f"{key} = {int(m.group(1)) * k}", text)
+open(path, "w").write(text)
+PY
+  fi
 }
 
 # True when every preset's evaluation of a run is there (then its training is not needed).
