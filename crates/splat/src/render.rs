@@ -7,7 +7,7 @@
 use crate::backend::SplatOps;
 use crate::camera::{Camera, CameraError};
 use crate::config::RasterConfig;
-use crate::views::ViewSets;
+use crate::views::{HostCameras, ViewSets};
 use burn::backend::Dispatch;
 use burn::tensor::{s, Device, Int, Tensor, TensorData};
 
@@ -159,16 +159,17 @@ pub fn validate(
     cameras: &Cameras,
     config: &RasterConfig,
 ) -> Result<(), RenderError> {
-    validate_sets(gaussians, cameras, &ViewSets::Shared, config)
+    validate_sets(gaussians, cameras, &ViewSets::Shared, config).map(|_| ())
 }
 
-/// [`validate`] for Gaussians split into per-view sets.
+/// [`validate`] for Gaussians split into per-view sets; returns the camera matrices it read,
+/// for the kernels.
 fn validate_sets(
     gaussians: &Gaussians,
     cameras: &Cameras,
     sets: &ViewSets,
     config: &RasterConfig,
-) -> Result<(), RenderError> {
+) -> Result<HostCameras, RenderError> {
     config.validate().map_err(RenderError::Config)?;
     let n = gaussians.means.dims()[0];
     check_shape("means", &gaussians.means.dims(), &[Some(n), Some(3)])?;
@@ -184,6 +185,7 @@ fn validate_sets(
     )?;
     check_shape("ks", &cameras.ks.dims(), &[Some(v), Some(3), Some(3)])?;
     sets.validate(v, n).map_err(RenderError::Config)?;
+    crate::kernels::readback::count_camera_reads();
     let vm: Vec<f64> = cameras
         .viewmats
         .to_data()
@@ -205,7 +207,13 @@ fn validate_sets(
             cameras.height,
         )?;
     }
-    Ok(())
+    // f32 on the GPU path (f32 tensors); f64 renders take the host path, which reads its
+    // own inputs at full precision.
+    let f32s = |v: Vec<f64>| v.into_iter().map(|x| x as f32).collect();
+    Ok(HostCameras {
+        viewmats: f32s(vm),
+        ks: f32s(ks),
+    })
 }
 
 /// Renders every camera of `cameras` from `gaussians`: gsplat's `rasterization(...,
@@ -268,7 +276,7 @@ fn render_sets(
     config: &RasterConfig,
 ) -> Result<RenderOutput, RenderError> {
     RENDER_CALLS.with(|c| c.set(c.get() + 1));
-    validate_sets(gaussians, cameras, &sets, config)?;
+    let host_cameras = validate_sets(gaussians, cameras, &sets, config)?;
     let g = gaussians.clone();
     let c = cameras.clone();
     let (image, radii, counts) = <Dispatch as SplatOps>::splat_forward(
@@ -282,6 +290,7 @@ fn render_sets(
         c.width,
         c.height,
         sets,
+        host_cameras,
         *config,
     );
     let image: Tensor<4> = Tensor::from_dispatch(image);

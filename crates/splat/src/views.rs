@@ -57,3 +57,13 @@ impl ViewSets {
         Ok(())
     }
 }
+
+/// One render call's camera matrices on the host, as validation read them: row-major f32
+/// `viewmats` (16 per view) and `ks` (9 per view). Validation has to read them anyway; the
+/// GPU kernels take them from here instead of reading the device a second time in the
+/// forward and a third in the backward (each read is a device synchronisation).
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct HostCameras {
+    pub viewmats: std::sync::Arc<[f32]>,
+    pub ks: std::sync::Arc<[f32]>,
+}

@@ -7,7 +7,7 @@
 
 use super::{SplatGrads, SplatOps};
 use crate::config::RasterConfig;
-use crate::views::ViewSets;
+use crate::views::{HostCameras, ViewSets};
 use burn::backend::autodiff::checkpoint::{base::Checkpointer, strategy::CheckpointStrategy};
 use burn::backend::autodiff::grads::Gradients;
 use burn::backend::autodiff::ops::{Backward, Ops, OpsKind};
@@ -24,6 +24,7 @@ struct RenderState<B: SplatOps> {
     width: u32,
     height: u32,
     sets: ViewSets,
+    host_cameras: HostCameras,
     config: RasterConfig,
 }
 
@@ -42,10 +43,25 @@ impl<B: SplatOps> Backward<B, 7> for RenderBackward {
             width,
             height,
             sets,
+            host_cameras,
             config,
         } = ops.state;
         let [m, q, s, o, c, v, k] = inputs;
-        let g = B::splat_backward(m, q, s, o, c, v, k, grad_image, width, height, sets, config);
+        let g = B::splat_backward(
+            m,
+            q,
+            s,
+            o,
+            c,
+            v,
+            k,
+            grad_image,
+            width,
+            height,
+            sets,
+            host_cameras,
+            config,
+        );
         for (parent, grad) in ops.parents.into_iter().zip([
             g.means,
             g.quats,
@@ -74,14 +90,27 @@ impl<B: SplatOps, C: CheckpointStrategy> SplatOps for Autodiff<B, C> {
         width: u32,
         height: u32,
         sets: ViewSets,
+        host_cameras: HostCameras,
         config: RasterConfig,
     ) -> (FloatTensor<Self>, IntTensor<Self>, IntTensor<Self>) {
         let tensors = [means, quats, scales, opacities, colors, viewmats, ks];
         let nodes = tensors.each_ref().map(|t| t.node());
         let inner = tensors.map(|t| t.into_primitive());
         let [m, q, s, o, c, v, k] = inner.clone();
-        let (image, radii, counts) =
-            B::splat_forward(m, q, s, o, c, v, k, width, height, sets.clone(), config);
+        let (image, radii, counts) = B::splat_forward(
+            m,
+            q,
+            s,
+            o,
+            c,
+            v,
+            k,
+            width,
+            height,
+            sets.clone(),
+            host_cameras.clone(),
+            config,
+        );
         let image = match RenderBackward
             .prepare::<C>(nodes)
             .compute_bound()
@@ -93,6 +122,7 @@ impl<B: SplatOps, C: CheckpointStrategy> SplatOps for Autodiff<B, C> {
                     width,
                     height,
                     sets,
+                    host_cameras,
                     config,
                 },
                 image,
@@ -115,6 +145,7 @@ impl<B: SplatOps, C: CheckpointStrategy> SplatOps for Autodiff<B, C> {
         width: u32,
         height: u32,
         sets: ViewSets,
+        host_cameras: HostCameras,
         config: RasterConfig,
     ) -> SplatGrads<Self> {
         let g = B::splat_backward(
@@ -129,6 +160,7 @@ impl<B: SplatOps, C: CheckpointStrategy> SplatOps for Autodiff<B, C> {
             width,
             height,
             sets,
+            host_cameras,
             config,
         );
         let lift = <Self as AutodiffBackend>::from_inner;

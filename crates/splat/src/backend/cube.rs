@@ -7,7 +7,7 @@ use crate::config::RasterConfig;
 use crate::kernels::launch::{self, Inputs};
 use crate::kernels::launch_backward;
 use crate::kernels::sort;
-use crate::views::ViewSets;
+use crate::views::{HostCameras, ViewSets};
 use burn::backend::tensor::{FloatTensor, IntTensor};
 use burn::backend::TensorMetadata;
 use burn::tensor::DType;
@@ -27,13 +27,17 @@ impl SplatOps for CubeBackend {
         width: u32,
         height: u32,
         sets: ViewSets,
+        host_cameras: HostCameras,
         config: RasterConfig,
     ) -> (FloatTensor<Self>, IntTensor<Self>, IntTensor<Self>) {
         let inputs = [means, quats, scales, opacities, colors, viewmats, ks];
         if inputs.iter().any(|t| t.dtype() != DType::F32) {
             return host::forward::<Self>(inputs, width, height, &sets, &config);
         }
-        launch::forward(&Inputs::new(inputs, width, height, &sets), &config)
+        launch::forward(
+            &Inputs::new(inputs, &host_cameras, width, height, &sets),
+            &config,
+        )
     }
 
     fn splat_backward(
@@ -48,6 +52,7 @@ impl SplatOps for CubeBackend {
         width: u32,
         height: u32,
         sets: ViewSets,
+        host_cameras: HostCameras,
         config: RasterConfig,
     ) -> SplatGrads<Self> {
         let inputs = [means, quats, scales, opacities, colors, viewmats, ks];
@@ -56,7 +61,7 @@ impl SplatOps for CubeBackend {
         }
         let shapes = inputs.each_ref().map(|t| t.shape());
         launch_backward::backward(
-            &Inputs::new(inputs, width, height, &sets),
+            &Inputs::new(inputs, &host_cameras, width, height, &sets),
             grad_image,
             shapes,
             &config,

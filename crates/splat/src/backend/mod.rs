@@ -13,7 +13,7 @@ mod host;
 mod host_sort;
 
 use crate::config::RasterConfig;
-use crate::views::ViewSets;
+use crate::views::{HostCameras, ViewSets};
 use burn::backend::tensor::{FloatTensor, IntTensor};
 use burn::backend::Backend;
 use burn::backend::{backend_extension, ExtensionType};
@@ -36,8 +36,10 @@ pub struct SplatGrads<B: Backend> {
 ///
 /// Shapes: means `[N,3]`, quats `[N,4]` (w,x,y,z), scales `[N,3]`, opacities `[N]`,
 /// colors `[N,3]`, viewmats `[V,4,4]` (world-to-camera, OpenCV axes), ks `[V,3,3]`; `sets`
-/// says which of the N rows each view renders. Callers validate shapes, sets and cameras
-/// first (see [`crate::render`]).
+/// says which of the N rows each view renders; `host_cameras` are viewmats and ks as
+/// validation read them (the GPU kernels use them instead of reading the device again; the
+/// host path reads its own copies). Callers validate shapes, sets and cameras first (see
+/// [`crate::render`]).
 #[backend_extension(Cube, Flex, Autodiff)]
 pub trait SplatOps: Backend {
     /// Returns `(image [V,H,W,5], radii [V,R,2] (int; R = [`ViewSets::radii_rows`]), counts
@@ -54,6 +56,7 @@ pub trait SplatOps: Backend {
         width: u32,
         height: u32,
         sets: ViewSets,
+        _host_cameras: HostCameras,
         config: RasterConfig,
     ) -> (FloatTensor<Self>, IntTensor<Self>, IntTensor<Self>) {
         host::forward::<Self>(
@@ -79,6 +82,7 @@ pub trait SplatOps: Backend {
         width: u32,
         height: u32,
         sets: ViewSets,
+        _host_cameras: HostCameras,
         config: RasterConfig,
     ) -> SplatGrads<Self> {
         host::backward::<Self>(

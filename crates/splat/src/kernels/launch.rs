@@ -10,12 +10,12 @@ use super::binning::{bins_of_view, order_view, DepthOrder, DeviceBins};
 use super::math::CAM_LANES;
 use super::project_forward::{project_forward, META_LANES, RECORD_LANES};
 use super::rasterize_forward::{rasterize_forward, OUT_CHANNELS, TILE};
-use super::readback::{read_f32, read_u32s};
+use super::readback::read_u32s;
 use super::sort::{empty_u32, exclusive_scan, retype};
 use super::view_meta::{radii_and_flags, view_counts};
 use crate::camera::Camera;
 use crate::config::RasterConfig;
-use crate::views::ViewSets;
+use crate::views::{HostCameras, ViewSets};
 use burn::backend::ops::{FloatTensorOps, IntTensorOps};
 use burn::backend::tensor::{FloatTensor, IntTensor};
 use burn::backend::TensorMetadata;
@@ -107,11 +107,18 @@ pub struct Inputs {
 }
 
 impl Inputs {
-    /// Flattens the Gaussian tensors and reads the (tiny) camera tensors back to the host.
-    pub fn new(t: [FloatTensor<CubeBackend>; 7], width: u32, height: u32, sets: &ViewSets) -> Self {
+    /// Flattens the Gaussian tensors; the cameras come from `host` (validation read them),
+    /// so the device is not read here.
+    pub fn new(
+        t: [FloatTensor<CubeBackend>; 7],
+        host: &HostCameras,
+        width: u32,
+        height: u32,
+        sets: &ViewSets,
+    ) -> Self {
         let n = t[0].shape()[0];
-        let [means, quats, scales, opacities, colors, viewmats, ks] = t.map(flat);
-        let (vm, k) = (read_f32(viewmats), read_f32(ks));
+        let [means, quats, scales, opacities, colors, _viewmats, _ks] = t.map(flat);
+        let (vm, k) = (&host.viewmats, &host.ks);
         let cams = (0..vm.len() / 16)
             .map(|v| {
                 Camera::from_matrices(
