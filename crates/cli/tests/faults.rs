@@ -5,9 +5,19 @@
 mod common;
 
 use common::{bin, logged_steps, s, synth, text, tree_bytes, write_config, Tmpfs};
+use std::os::unix::process::ExitStatusExt;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
+
+/// Sends `kill -SIG pid`.
+fn signal(pid: u32, sig: &str) {
+    let ok = Command::new("kill")
+        .args([format!("-{sig}"), pid.to_string()])
+        .status()
+        .expect("kill runs");
+    assert!(ok.success(), "kill -{sig} {pid}");
+}
 
 /// A run's final weights: the bytes every interrupted-then-resumed run must reproduce.
 fn reference_model(dir: &Path, data: &Path, iterations: i64) -> Vec<u8> {
@@ -60,8 +70,10 @@ fn a_second_writer_is_refused_and_the_first_is_unharmed() {
     let out = tmp.path().join("run");
     let cfg = write_config(tmp.path(), &data, &out, 6);
     let mut first = spawn_train(&cfg, tmp.path());
-    // config.toml is written under the lock: from then on the first holds it.
+    // config.toml is written under the lock: from then on the first holds it. Paused
+    // (SIGSTOP) while the others try, so it cannot finish first however fast it is.
     wait_for(&out.join("config.toml"), &mut first);
+    signal(first.id(), "STOP");
     for extra in [&[][..], &["--resume", s(&out)][..]] {
         let mut args = vec!["train", "--config", s(&cfg)];
         args.extend_from_slice(extra);
@@ -71,6 +83,7 @@ fn a_second_writer_is_refused_and_the_first_is_unharmed() {
         assert!(t.contains("in use") && t.contains(s(&out)), "{t}");
         assert!(t.contains(&format!("pid {}", first.id())), "{t}");
     }
+    signal(first.id(), "CONT");
     let first = first.wait_with_output().unwrap();
     assert!(first.status.success(), "{}", text(&first));
     assert_eq!(logged_steps(&out), (0..6).collect::<Vec<_>>());
@@ -92,7 +105,13 @@ fn a_killed_run_resumes_past_its_stale_lock_to_the_same_weights() {
     let mut run = spawn_train(&cfg, tmp.path());
     wait_for(&out.join("checkpoints/step-00000002/state.json"), &mut run);
     run.kill().unwrap(); // SIGKILL: no destructor, no unlock by the program
-    run.wait().unwrap();
+    let status = run.wait().unwrap();
+    // Killed, not finished: otherwise the resume below would test nothing.
+    assert_eq!(
+        status.signal(),
+        Some(9),
+        "the run ended before the kill: {status}"
+    );
     let lock = std::fs::read_to_string(out.join(".lock")).unwrap();
     assert!(lock.contains(&format!("pid {}", run.id())), "{lock}");
     let resumed = bin(

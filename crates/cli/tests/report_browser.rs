@@ -47,11 +47,15 @@ fn chromium(page: &Path, extra: &[&str]) -> Output {
         .expect("chromium runs")
 }
 
-/// Console lines (`INFO:CONSOLE`, errors of the page's own) in Chromium's stderr.
+/// What the harness logs itself, to show that console capture works.
+const MARKER: &str = "HARNESS_MARKER";
+
+/// Console lines (`INFO:CONSOLE`, errors of the page's own) in Chromium's stderr, but the
+/// harness's marker.
 fn console_lines(o: &Output) -> Vec<String> {
     String::from_utf8_lossy(&o.stderr)
         .lines()
-        .filter(|l| l.contains(":CONSOLE"))
+        .filter(|l| l.contains(":CONSOLE") && !l.contains(MARKER))
         .map(str::to_owned)
         .collect()
 }
@@ -62,6 +66,7 @@ const HARNESS: &str = r#"<!DOCTYPE html><html><body>
 <iframe id="f" src="report.html" style="width:1400px;height:2000px"></iframe>
 <pre id="result">pending</pre>
 <script>
+console.log('HARNESS_MARKER');
 document.getElementById('f').addEventListener('load', () => {
   const d = document.getElementById('f').contentDocument;
   const imgs = Array.from(d.images);
@@ -126,6 +131,12 @@ fn the_demo_report_loads_in_headless_chromium() {
     assert!(
         result.contains("broken=[]"),
         "images that did not load: {result}"
+    );
+    // Console capture works (the harness's own line is seen), and the report adds nothing.
+    assert!(
+        String::from_utf8_lossy(&check.stderr).contains(MARKER),
+        "console messages are not captured: {}",
+        text(&check)
     );
     assert!(
         console_lines(&check).is_empty(),

@@ -3,10 +3,10 @@
 //! frame, the two image baselines' frames, the model's rendered depth and the true dynamic
 //! mask. Host copies, so a caller can keep a few clips' worth after the device is reused.
 
-use crate::error::Result;
+use crate::error::{EvalError, Result};
 use crate::report::Method;
 use burn::tensor::Tensor;
-use envision4d_losses::{HostDepths, HostImages};
+use envision4d_losses::HostImages;
 
 /// Images of one clip's future frames (all `[T_f, 3, H, W]` in `[0, 1]`-ish linear RGB).
 #[derive(Debug, Clone, PartialEq)]
@@ -16,8 +16,9 @@ pub struct ClipImages {
     pub ground_truth: HostImages,
     /// The model first, then copy-last and static+cv.
     pub methods: Vec<(Method, HostImages)>,
-    /// The model's rendered depth `[T_f, H, W]` (scene units).
-    pub depth: HostDepths,
+    /// The model's rendered depth, `T_f * H * W` row-major (scene units; may hold
+    /// non-finite values where nothing was rendered: a picture, not a score).
+    pub depth: Vec<f32>,
     /// The true dynamic mask of each future frame (`None` where the clip has none).
     pub dynamic_masks: Vec<Option<Vec<bool>>>,
 }
@@ -41,7 +42,12 @@ impl ClipImages {
                 (Method::CopyLast, copy),
                 (Method::StaticCv, cv),
             ],
-            depth: HostDepths::from_tensor("rendered depth", depth.clone())?,
+            depth: depth
+                .clone()
+                .into_data()
+                .convert::<f32>()
+                .try_into_vec::<f32>()
+                .map_err(|e| EvalError::Device(format!("reading the rendered depth: {e:?}")))?,
             dynamic_masks,
         })
     }
@@ -49,6 +55,12 @@ impl ClipImages {
     /// Number of future frames.
     pub fn frames(&self) -> usize {
         self.ground_truth.shape()[0]
+    }
+
+    /// Depth map of future frame `k`.
+    pub fn depth_map(&self, k: usize) -> &[f32] {
+        let (h, w) = self.size();
+        &self.depth[k * h * w..(k + 1) * h * w]
     }
 
     /// `(H, W)`.

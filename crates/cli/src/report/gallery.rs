@@ -87,7 +87,7 @@ impl Gallery {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use envision4d_losses::{HostDepths, HostImages};
+    use envision4d_losses::HostImages;
 
     fn clip(name: &str, psnr: f64) -> ClipMetrics {
         let mut m: ClipMetrics =
@@ -99,7 +99,7 @@ mod tests {
             context: 2,
             ground_truth: HostImages::new("t", vec![0.0; 3], [1, 3, 1, 1]).unwrap(),
             methods: Vec::new(),
-            depth: HostDepths::new("t", vec![1.0], [1, 1, 1]).unwrap(),
+            depth: vec![1.0],
             dynamic_masks: Vec::new(),
         });
         m

@@ -74,8 +74,8 @@ pub fn write_clip(out: &Path, kind: &str, shown: &Shown) -> Result<String> {
                 img(&name, &interleaved(frames, k))?
             )?;
         }
-        let depth: Vec<f32> = im.depth.map(k).iter().map(|&d| d as f32).collect();
-        let colors = depth_colors(&depth, &vec![1.0; depth.len()]);
+        let depth = im.depth_map(k);
+        let colors = depth_colors(depth, &vec![1.0; depth.len()]);
         write!(html, "<td>{}</td>", img("depth", &colors)?)?;
         match im.dynamic_masks.get(k).and_then(Option::as_ref) {
             Some(mask) => {

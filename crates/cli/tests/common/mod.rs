@@ -92,16 +92,19 @@ pub fn logged_steps(out: &Path) -> Vec<u64> {
         .collect()
 }
 
-/// Whether this process runs as root (mounting a tmpfs needs it).
-pub fn is_root() -> bool {
+/// Whether this process may mount (CAP_SYS_ADMIN in its effective set: root on a machine,
+/// not root in an unprivileged container).
+pub fn can_mount() -> bool {
+    const CAP_SYS_ADMIN: u32 = 21;
     std::fs::read_to_string("/proc/self/status")
         .ok()
         .and_then(|s| {
             s.lines()
-                .find(|l| l.starts_with("Uid:"))
-                .map(|l| l.split_whitespace().nth(2) == Some("0"))
+                .find(|l| l.starts_with("CapEff:"))
+                .and_then(|l| l.split_whitespace().nth(1))
+                .and_then(|hex| u64::from_str_radix(hex, 16).ok())
         })
-        .unwrap_or(false)
+        .is_some_and(|caps| (caps >> CAP_SYS_ADMIN) & 1 == 1)
 }
 
 /// A real, small file system (tmpfs) mounted on a folder, so a full disk gives a genuine
@@ -115,12 +118,13 @@ impl Tmpfs {
     /// another user the test fails saying so, unless `ENVISION4D_SKIP_MOUNT=1` asks to skip
     /// it (`None`, with a note); a failed mount as root fails the test.
     pub fn mount(dir: &Path, bytes: u64) -> Option<Tmpfs> {
-        if !is_root() {
+        if !can_mount() {
             let skip = std::env::var("ENVISION4D_SKIP_MOUNT").is_ok_and(|v| v == "1");
             assert!(
                 skip,
                 "this test mounts a small tmpfs for a genuine full or read-only disk and needs \
-                 root; run as root (as CI does) or set ENVISION4D_SKIP_MOUNT=1 to skip it"
+                 root with CAP_SYS_ADMIN; run as root (as CI does) or set \
+                 ENVISION4D_SKIP_MOUNT=1 to skip it"
             );
             eprintln!("skipped (ENVISION4D_SKIP_MOUNT=1): mounting a tmpfs needs root");
             return None;
