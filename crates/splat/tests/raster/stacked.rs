@@ -166,6 +166,10 @@ fn render_each_equals_separate_renders_cpu() {
     assert_eq!(worst, 0.0, "joint render differs from separate renders");
 }
 
+/// A render call's camera tensors, read once; then one totals read in each of the two passes.
+const CAMERA_READS: usize = 2;
+const PASSES: usize = 2;
+
 /// Guards per-view Gaussian sets in the GPU kernels (row offsets in projection forward and
 /// backward, the radii stride): equal to separate renders on wgpu within float-atomic
 /// reordering, with the joint forward+backward reading the host as often as one view
@@ -180,7 +184,7 @@ fn render_each_equals_separate_renders_wgpu() {
     assert!(worst <= 1e-5, "joint render differs by {worst}");
     assert_eq!(
         reads,
-        2 + 2 * 1,
+        CAMERA_READS + PASSES,
         "host readbacks of the joint forward+backward"
     );
 }
