@@ -14,12 +14,23 @@ pub struct Shown {
 }
 
 impl Shown {
-    /// The model's future-frame PSNR (the ranking key).
+    /// The model's future-frame PSNR.
     pub fn psnr(&self) -> f64 {
         self.methods
             .iter()
             .find(|m| m.method == Method::Model)
             .map_or(f64::NAN, |m| m.psnr)
+    }
+
+    /// The ranking key: the PSNR, with a missing or NaN one ranked worst (not best, where
+    /// `total_cmp` would put it).
+    fn rank(&self) -> f64 {
+        let p = self.psnr();
+        if p.is_nan() {
+            f64::NEG_INFINITY
+        } else {
+            p
+        }
     }
 }
 
@@ -59,7 +70,7 @@ impl Gallery {
         };
         let at = self
             .clips
-            .partition_point(|c| c.psnr().total_cmp(&shown.psnr()).is_lt());
+            .partition_point(|c| c.rank().total_cmp(&shown.rank()).is_lt());
         self.clips.insert(at, shown);
         if self.clips.len() > self.keep {
             // The one between the worst half and the best half leaves.
@@ -92,7 +103,7 @@ mod tests {
     fn clip(name: &str, psnr: f64) -> ClipMetrics {
         let mut m: ClipMetrics =
             serde_json::from_value(serde_json::json!({"clip": name, "timing": {"encoder_s": 0.0, "decoder_s": 0.0, "context_decoder_s": null}, "methods": [], "context": null, "depth_rmse": null, "context_depth_rmse": null, "motion": null})).unwrap();
-        let mut score: MethodScore = serde_json::from_value(serde_json::json!({"method": "model", "psnr": psnr, "ssim": 0.0, "lpips": null, "rot_err_deg": null, "trans_err": null, "trans_err_unaligned": null, "pose_scale": null, "dynamic_psnr": null, "dynamic_ssim": null, "static_psnr": null, "static_ssim": null, "camera_auc30": null, "time_s": 0.0, "per_horizon": []})).unwrap();
+        let mut score: MethodScore = serde_json::from_value(serde_json::json!({"method": "model", "psnr": 0.0, "ssim": 0.0, "lpips": null, "rot_err_deg": null, "trans_err": null, "trans_err_unaligned": null, "pose_scale": null, "dynamic_psnr": null, "dynamic_ssim": null, "static_psnr": null, "static_ssim": null, "camera_auc30": null, "time_s": 0.0, "per_horizon": []})).unwrap();
         score.psnr = psnr;
         m.methods = vec![score];
         m.images = Some(ClipImages {
@@ -105,14 +116,15 @@ mod tests {
         m
     }
 
-    /// Guards the streamed choice: of seven clips arriving in any order, the report keeps
-    /// the two worst (worst first) and the two best (best first), and takes their images
-    /// out of the metrics (which stay in the run).
+    /// Guards the streamed choice: of eight clips arriving in any order, the report keeps
+    /// the two worst (worst first; a NaN PSNR is worst, not best) and the two best (best
+    /// first), and takes their images out of the metrics (which stay in the run).
     #[test]
     fn keeps_the_worst_and_best_while_streaming() {
         let mut g = Gallery::new(4);
         for (name, psnr) in [
             ("c", 15.0),
+            ("n", f64::NAN),
             ("a", 10.0),
             ("g", 30.0),
             ("d", 20.0),
@@ -129,7 +141,7 @@ mod tests {
             .into_iter()
             .map(|(k, s)| (k, s.clip))
             .collect();
-        let want = [("worst", "a"), ("worst", "b"), ("best", "g"), ("best", "f")];
+        let want = [("worst", "n"), ("worst", "a"), ("best", "g"), ("best", "f")];
         assert_eq!(got, want.map(|(k, c)| (k, c.to_owned())));
     }
 }

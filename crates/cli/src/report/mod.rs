@@ -81,8 +81,13 @@ pub fn write_report(
             shown.len(),
             report.clips_evaluated
         )?;
-        for (kind, clip) in &shown {
-            html.push_str(&strips::write_clip(out, kind, clip)?);
+        // report/ is this page's own folder: an earlier run's clips leave with it.
+        let dir = out.join(strips::REPORT_DIR);
+        if dir.is_dir() {
+            std::fs::remove_dir_all(&dir).with_context(|| format!("clearing {}", dir.display()))?;
+        }
+        for (rank, (kind, clip)) in shown.iter().enumerate() {
+            html.push_str(&strips::write_clip(out, rank, kind, clip)?);
         }
     }
     html.push_str(&markdown::to_html(detail, 0));

@@ -28,9 +28,10 @@ fn interleaved(images: &HostImages, n: usize) -> Vec<f32> {
         .collect()
 }
 
-/// Writes `shown`'s images under `out/report/<clip>/`; returns its HTML section.
-pub fn write_clip(out: &Path, kind: &str, shown: &Shown) -> Result<String> {
-    let stem = file_stem(&shown.clip);
+/// Writes `shown`'s images under `out/report/<rank>_<clip>/` (the rank keeps two clip ids
+/// that clean to one file name apart); returns its HTML section.
+pub fn write_clip(out: &Path, rank: usize, kind: &str, shown: &Shown) -> Result<String> {
+    let stem = format!("{rank}_{}", file_stem(&shown.clip));
     let rel = format!("{REPORT_DIR}/{stem}");
     let dir = out.join(&rel);
     envision4d_data::atomic::create_dir(&dir)?;

@@ -25,7 +25,12 @@ impl LpipsWeights {
             return Self::from_safetensors(spec, net);
         }
         let text = spec.to_string_lossy();
-        let parts: Vec<PathBuf> = text.split(',').map(|p| PathBuf::from(p.trim())).collect();
+        let parts: Vec<PathBuf> = text
+            .split(',')
+            .map(str::trim)
+            .filter(|p| !p.is_empty())
+            .map(PathBuf::from)
+            .collect();
         match parts.as_slice() {
             [one] => Self::from_safetensors(one, net),
             [a, b] => {
