@@ -81,15 +81,24 @@ pub fn run(args: TrainArgs) -> Result<()> {
         cfg.run.out_dir = dir.clone();
     }
     let reduce = reduce_for(args.grad_reduce, &args.devices)?;
+    // run.activation_checkpointing: Burn's balanced checkpointing on every training device.
+    let autodiff = |d: burn::tensor::Device| {
+        let d = d.autodiff();
+        if cfg.run.activation_checkpointing {
+            d.gradient_checkpointing()
+        } else {
+            d
+        }
+    };
     let devices = args
         .devices
         .iter()
-        .map(|d| parse_device(d).map(|d| d.autodiff()))
+        .map(|d| parse_device(d).map(autodiff))
         .collect::<Result<Vec<_>, _>>()?;
     // With --devices the first one holds the model and the optimiser.
     let device = match devices.first() {
         Some(d) => d.clone(),
-        None => args.backend.device()?.autodiff(),
+        None => autodiff(args.backend.device()?),
     };
     if args.dry_run {
         return dry_run(&args, cfg, &device);

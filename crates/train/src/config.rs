@@ -320,6 +320,11 @@ pub struct RunConfig {
     /// Consecutive non-finite steps after which the run stops (the last good checkpoint
     /// stays intact).
     pub max_nonfinite_steps: u64,
+    /// Burn's balanced activation checkpointing on the training device(s): memory-bound
+    /// activations are recomputed in the backward instead of kept. Same gradients (tested),
+    /// less memory, some more time; `docs/PERFORMANCE.md` has the paper-size measurement.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub activation_checkpointing: bool,
 }
 
 impl Default for RunConfig {
@@ -333,6 +338,7 @@ impl Default for RunConfig {
             val_every: 5_000,
             val_clips: 8,
             max_nonfinite_steps: 10,
+            activation_checkpointing: false,
         }
     }
 }

@@ -104,3 +104,50 @@ pub fn write_synth_dataset(root: &std::path::Path, clips: u64, frames: usize) {
         write_clip(&root.join(format!("clip_{i:06}")), &r).expect("clip written");
     }
 }
+
+/// `(largest |a − b|, largest |a|, gradients compared)` over `model`'s parameters that have
+/// a gradient in both.
+pub fn grad_diff<M: Module>(
+    model: &M,
+    a: &burn::optim::GradientsParams,
+    b: &burn::optim::GradientsParams,
+) -> (f32, f32, usize) {
+    struct Cmp<'a>(
+        &'a burn::optim::GradientsParams,
+        &'a burn::optim::GradientsParams,
+        f32,
+        f32,
+        usize,
+    );
+    impl ModuleVisitor for Cmp<'_> {
+        fn visit_float<const D: usize>(&mut self, p: &Param<Tensor<D>>) {
+            if let (Some(a), Some(b)) = (self.0.get::<D>(p.id), self.1.get::<D>(p.id)) {
+                let d = (a.clone() - b).abs().max().into_scalar::<f32>();
+                let m = a.abs().max().into_scalar::<f32>();
+                self.2 = self.2.max(d);
+                self.3 = self.3.max(m);
+                self.4 += 1;
+            }
+        }
+    }
+    let mut cmp = Cmp(a, b, 0.0, 0.0, 0);
+    model.visit(&mut cmp);
+    (cmp.2, cmp.3, cmp.4)
+}
+
+/// `model`'s gradients in `g`, in the model's parameter order (to compare two models whose
+/// parameter ids differ), flattened.
+pub fn ordered_grads<M: Module>(model: &M, g: &burn::optim::GradientsParams) -> Vec<Vec<f32>> {
+    struct Collect<'a>(&'a burn::optim::GradientsParams, Vec<Vec<f32>>);
+    impl ModuleVisitor for Collect<'_> {
+        fn visit_float<const D: usize>(&mut self, p: &Param<Tensor<D>>) {
+            if let Some(t) = self.0.get::<D>(p.id) {
+                self.1
+                    .push(t.into_data().convert::<f32>().try_to_vec::<f32>().unwrap());
+            }
+        }
+    }
+    let mut c = Collect(g, Vec::new());
+    model.visit(&mut c);
+    c.1
+}

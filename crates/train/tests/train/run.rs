@@ -263,9 +263,7 @@ fn backbone_stage_then_teacher() {
 /// 1/n would show), with clips of different sky fractions (the depth term's pooling).
 #[test]
 fn data_parallel_gradients_equal_single_device_gradients() {
-    use burn::module::{Module, ModuleVisitor, Param};
     use burn::optim::GradientsParams;
-    use burn::tensor::Tensor;
     use envision4d_train::parallel::ParallelGradients;
     let device = Device::flex().autodiff();
     let mut c = tiny_config();
@@ -302,26 +300,11 @@ fn data_parallel_gradients_equal_single_device_gradients() {
     else {
         panic!("parallel step not finite")
     };
-    struct Cmp<'a>(&'a GradientsParams, &'a GradientsParams, f32, f32, usize);
-    impl ModuleVisitor for Cmp<'_> {
-        fn visit_float<const D: usize>(&mut self, p: &Param<Tensor<D>>) {
-            if let (Some(a), Some(b)) = (self.0.get::<D>(p.id), self.1.get::<D>(p.id)) {
-                let d = (a.clone() - b).abs().max().into_scalar::<f32>();
-                let m = a.abs().max().into_scalar::<f32>();
-                self.2 = self.2.max(d);
-                self.3 = self.3.max(m);
-                self.4 += 1;
-            }
-        }
-    }
-    let mut cmp = Cmp(&single, &par, 0.0, 0.0, 0);
-    t.model.visit(&mut cmp);
-    assert!(cmp.4 > 100, "only {} gradients compared", cmp.4);
+    let (diff, largest, compared) = crate::common::grad_diff(&t.model, &single, &par);
+    assert!(compared > 100, "only {compared} gradients compared");
     assert!(
-        cmp.2 <= 1e-4 * cmp.3,
-        "gradients differ by {} (largest {})",
-        cmp.2,
-        cmp.3
+        diff <= 1e-4 * largest,
+        "gradients differ by {diff} (largest {largest})"
     ); // Burn's collectives: where the backend has them (CUDA) the all-reduced sum equals the
        // gathered one; where it has none (burn-flex here) the step is an error naming the
        // all-reduce, not a hang or an abort.
@@ -332,13 +315,51 @@ fn data_parallel_gradients_equal_single_device_gradients() {
         envision4d_train::parallel::GradientReduce::AllReduce,
     ) {
         Ok(ParallelGradients::Ready { grads: red, .. }) => {
-            let mut cmp = Cmp(&par, &red, 0.0, 0.0, 0);
-            t.model.visit(&mut cmp);
-            assert!(cmp.2 <= 1e-6 * cmp.3, "all-reduce differs by {}", cmp.2);
+            let (diff, largest, _) = crate::common::grad_diff(&t.model, &par, &red);
+            assert!(diff <= 1e-6 * largest, "all-reduce differs by {diff}");
         }
         Ok(_) => panic!("all-reduce step not finite"),
         Err(e) => assert!(e.to_string().contains("all-reduce"), "{e}"),
     }
+}
+
+/// Guards `run.activation_checkpointing`: Burn's balanced checkpointing recomputes
+/// activations in the backward instead of keeping them, which must change memory, not the
+/// gradients: one training step's gradients at tiny widths equal those without it.
+#[test]
+fn activation_checkpointing_keeps_the_gradients() {
+    use burn::optim::GradientsParams;
+    let mut c = tiny_config();
+    c.progressive.warmup_iterations = 0;
+    let grads = |device: &Device| {
+        let batch = envision4d_train::batch::Batch::from_clips(
+            &[crate::common::synth_clip(3)],
+            2,
+            true,
+            device,
+        )
+        .unwrap();
+        let t = Trainer::new(c.clone(), device).unwrap();
+        let mut g = t.loss(&batch, 0).unwrap().total.backward();
+        let g = GradientsParams::from_params(&mut g, &t.model, &t.split.trainable);
+        // Two trainers' parameter ids differ: compare in the model's order.
+        crate::common::ordered_grads(&t.model, &g)
+    };
+    let plain = grads(&Device::flex().autodiff());
+    let checkpointed = grads(&Device::flex().autodiff().gradient_checkpointing());
+    assert_eq!(plain.len(), checkpointed.len());
+    assert!(plain.len() > 100, "only {} gradients compared", plain.len());
+    let pairs = || plain.iter().flatten().zip(checkpointed.iter().flatten());
+    let diff = pairs().map(|(a, b)| (a - b).abs()).fold(0.0f32, f32::max);
+    let largest = plain
+        .iter()
+        .flatten()
+        .map(|a| a.abs())
+        .fold(0.0f32, f32::max);
+    assert!(
+        diff <= 1e-5 * largest,
+        "checkpointed gradients differ by {diff} (largest {largest})"
+    );
 }
 
 /// Guards one writer per run directory: while another holder has `run.out_dir` locked, a
