@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::{bin, logged_steps, s, synth, text, tree_bytes, write_config, Tmpfs};
+use common::{bin, logged_steps, s, synth, text, tree_bytes, walk, write_config, Tmpfs};
 use std::os::unix::process::ExitStatusExt;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
@@ -251,17 +251,4 @@ fn eval_and_render_on_a_full_or_read_only_disk_keep_earlier_outputs() {
             .collect();
         assert!(temps.is_empty(), "temp files left behind: {temps:?}");
     }
-}
-
-fn walk(dir: &Path) -> Vec<PathBuf> {
-    let mut out = Vec::new();
-    for e in std::fs::read_dir(dir).unwrap() {
-        let p = e.unwrap().path();
-        if p.is_dir() {
-            out.extend(walk(&p));
-        } else {
-            out.push(p);
-        }
-    }
-    out
 }

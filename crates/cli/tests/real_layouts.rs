@@ -2,22 +2,15 @@
 //! storm-waymo|nuscenes`): training reads only the training split, evaluation scores the
 //! evaluation split with LiDAR D-RMSE, cross-frame pairs and scale-aligned pose errors.
 
+mod common;
+
+use common::text;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Output;
 
+/// `envision4d args` in the test's working directory.
 fn bin(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_envision4d"))
-        .args(args)
-        .output()
-        .expect("envision4d runs")
-}
-
-fn text(o: &Output) -> String {
-    format!(
-        "{}{}",
-        String::from_utf8_lossy(&o.stdout),
-        String::from_utf8_lossy(&o.stderr)
-    )
+    common::bin(args, Path::new("."))
 }
 
 /// Writes `frames` frames of one synthetic scene as `<root>/<split>/000`.
@@ -45,17 +38,9 @@ fn storm_split(root: &Path, split: &str, frames: usize, seed: u64) {
 /// `configs/synth-tiny.toml` on the STORM tree: random init, no distillation (the tree's
 /// LiDAR is sparse, so exact dense labels do not exist), T_f = 2, `steps` iterations.
 fn config(dir: &Path, root: &Path, steps: i64) -> PathBuf {
-    let shipped = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../configs/synth-tiny.toml");
-    let mut cfg: toml::Table = toml::from_str(&std::fs::read_to_string(shipped).unwrap()).unwrap();
-    cfg.remove("init_checkpoint");
-    cfg.insert("freeze".into(), toml::Value::Array(vec![]));
+    let mut cfg = common::shipped_tiny();
     cfg.insert("teacher".into(), "none".into());
-    let set = |cfg: &mut toml::Table, table: &str, key: &str, v: toml::Value| {
-        cfg.get_mut(table)
-            .and_then(|t| t.as_table_mut())
-            .unwrap()
-            .insert(key.into(), v);
-    };
+    let set = common::set;
     set(&mut cfg, "model", "future_frames", 2.into());
     set(&mut cfg, "optim", "batch_size", 1.into());
     set(&mut cfg, "optim", "iterations", steps.into());

@@ -54,7 +54,8 @@ impl Gallery {
         self.keep > 0
     }
 
-    /// Takes `m`'s images (and a copy of its motion maps) if it ranks among the kept.
+    /// Takes `m`'s images (and a copy of its motion maps) if it ranks among the kept; a clip
+    /// that would leave at once costs no copy.
     pub fn offer(&mut self, m: &mut ClipMetrics) {
         let Some(images) = m.images.take() else {
             return;
@@ -62,18 +63,24 @@ impl Gallery {
         if self.keep == 0 {
             return;
         }
-        let shown = Shown {
+        let mut shown = Shown {
             clip: m.clip.clone(),
             methods: m.methods.clone(),
             images,
-            maps: m.motion_maps.clone(),
+            maps: None,
         };
         let at = self
             .clips
             .partition_point(|c| c.rank().total_cmp(&shown.rank()).is_lt());
+        // Full: the one between the worst half and the best half leaves; if that is this
+        // clip, nothing changes.
+        let full = self.clips.len() == self.keep;
+        if full && at == self.keep / 2 {
+            return;
+        }
+        shown.maps = m.motion_maps.clone();
         self.clips.insert(at, shown);
-        if self.clips.len() > self.keep {
-            // The one between the worst half and the best half leaves.
+        if full {
             self.clips.remove(self.keep / 2);
         }
     }

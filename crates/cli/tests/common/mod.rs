@@ -53,20 +53,28 @@ pub fn synth(dir: &Path, name: &str, clips: usize, frames: usize) -> PathBuf {
     data
 }
 
-/// A tiny stage-2 config (random init, exact labels, T_f = 2) of `iterations` steps on
-/// `data`, writing to `out` and checkpointing every step; saved as `dir/cfg.toml`.
-pub fn write_config(dir: &Path, data: &Path, out: &Path, iterations: i64) -> PathBuf {
+/// `configs/synth-tiny.toml` as a table, trained from random init with nothing frozen.
+pub fn shipped_tiny() -> toml::Table {
     let shipped = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../configs/synth-tiny.toml");
     let text = std::fs::read_to_string(shipped).unwrap();
     let mut cfg: toml::Table = toml::from_str(&text).unwrap();
     cfg.remove("init_checkpoint");
     cfg.insert("freeze".into(), toml::Value::Array(vec![]));
-    let set = |cfg: &mut toml::Table, table: &str, key: &str, v: toml::Value| {
-        cfg.get_mut(table)
-            .and_then(|t| t.as_table_mut())
-            .unwrap()
-            .insert(key.into(), v);
-    };
+    cfg
+}
+
+/// Sets `[table] key = v` of a config table.
+pub fn set(cfg: &mut toml::Table, table: &str, key: &str, v: toml::Value) {
+    cfg.get_mut(table)
+        .and_then(|t| t.as_table_mut())
+        .unwrap()
+        .insert(key.into(), v);
+}
+
+/// A tiny stage-2 config (random init, exact labels, T_f = 2) of `iterations` steps on
+/// `data`, writing to `out` and checkpointing every step; saved as `dir/cfg.toml`.
+pub fn write_config(dir: &Path, data: &Path, out: &Path, iterations: i64) -> PathBuf {
+    let mut cfg = shipped_tiny();
     set(&mut cfg, "model", "future_frames", 2.into());
     set(&mut cfg, "optim", "batch_size", 1.into());
     set(&mut cfg, "optim", "iterations", iterations.into());
@@ -178,18 +186,24 @@ fn mount(args: &[&str]) {
     assert!(o.status.success(), "mount {args:?}: {}", text(&o));
 }
 
+/// Every file under `dir` (recursively).
+pub fn walk(dir: &Path) -> Vec<PathBuf> {
+    let mut out = Vec::new();
+    for e in std::fs::read_dir(dir).unwrap() {
+        let p = e.unwrap().path();
+        if p.is_dir() {
+            out.extend(walk(&p));
+        } else {
+            out.push(p);
+        }
+    }
+    out
+}
+
 /// Total size of the files under `dir`.
 pub fn tree_bytes(dir: &Path) -> u64 {
-    std::fs::read_dir(dir)
-        .unwrap()
-        .map(|e| {
-            let e = e.unwrap();
-            let m = e.metadata().unwrap();
-            if m.is_dir() {
-                tree_bytes(&e.path())
-            } else {
-                m.len()
-            }
-        })
+    walk(dir)
+        .iter()
+        .map(|p| std::fs::metadata(p).unwrap().len())
         .sum()
 }

@@ -167,23 +167,11 @@ fn weight_file_errors_name_path_and_key() {
     assert!(err.to_string().contains("net.slice1.0.weight"), "{err}");
 }
 
-/// Guards the export-script layout (package key names, no prefix, f32): a file written that
-/// way loads through `LpipsStatus::from_path` and reproduces the fixture's LPIPS values.
-#[test]
-fn export_layout_file_loads_and_matches_fixture() {
-    use crate::common::{export_layout, fixture_images, read, write_safetensors};
-    let dir = tempfile::tempdir().unwrap();
-    let path = dir.path().join("lpips_vgg.safetensors");
-    let weights = fixture_vgg_weights();
-    write_safetensors(
-        &path,
-        &export_layout(&weights, envision4d_losses::lpips::SCALING_SHIFT),
-    );
-    assert_eq!(
-        LpipsWeights::from_safetensors(&path, LpipsNet::Vgg).unwrap(),
-        weights
-    );
-    let status = LpipsStatus::from_path(Some(&path), LpipsNet::Vgg, &Device::flex()).unwrap();
+/// LPIPS loaded from `spec` through `LpipsStatus::from_path` reproduces the fixture's
+/// official values (within 1e-5 relative).
+fn assert_official_lpips(spec: &Path) {
+    use crate::common::{fixture_images, read};
+    let status = LpipsStatus::from_path(Some(spec), LpipsNet::Vgg, &Device::flex()).unwrap();
     assert!(status.notice().is_none());
     let got = status
         .require()
@@ -197,6 +185,25 @@ fn export_layout_file_loads_and_matches_fixture() {
     for (g, w) in got.iter().zip(&want) {
         assert!((g - w).abs() <= 1e-5 * w, "{g} vs {w}");
     }
+}
+
+/// Guards the export-script layout (package key names, no prefix, f32): a file written that
+/// way loads through `LpipsStatus::from_path` and reproduces the fixture's LPIPS values.
+#[test]
+fn export_layout_file_loads_and_matches_fixture() {
+    use crate::common::{export_layout, write_safetensors};
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("lpips_vgg.safetensors");
+    let weights = fixture_vgg_weights();
+    write_safetensors(
+        &path,
+        &export_layout(&weights, envision4d_losses::lpips::SCALING_SHIFT),
+    );
+    assert_eq!(
+        LpipsWeights::from_safetensors(&path, LpipsNet::Vgg).unwrap(),
+        weights
+    );
+    assert_official_lpips(&path);
 
     // A file whose ScalingLayer differs from the package constants is rejected by name.
     let bad = dir.path().join("bad_scaling.safetensors");
@@ -262,7 +269,6 @@ fn torchvision_and_lins(dir: &Path) -> (std::path::PathBuf, std::path::PathBuf) 
 /// fixture's weights and give the same LPIPS as the safetensors path (the official values).
 #[test]
 fn torchvision_and_lpips_pth_files_load_like_the_safetensors() {
-    use crate::common::{fixture_images, read};
     let dir = tempfile::tempdir().unwrap();
     let (backbone, lins) = torchvision_and_lins(dir.path());
     let want = fixture_vgg_weights();
@@ -273,21 +279,11 @@ fn torchvision_and_lpips_pth_files_load_like_the_safetensors() {
         let got = LpipsWeights::from_spec(Path::new(&spec), LpipsNet::Vgg).unwrap();
         assert_eq!(got, want, "{spec}");
     }
-    let spec = format!("{},{}", backbone.display(), lins.display());
-    let status =
-        LpipsStatus::from_path(Some(Path::new(&spec)), LpipsNet::Vgg, &Device::flex()).unwrap();
-    let got = status
-        .require()
-        .unwrap()
-        .distance_host(
-            &fixture_images("input/ground_truth"),
-            &fixture_images("input/predicted"),
-        )
-        .unwrap();
-    let (expected, _) = read(&fixture(), "expected/lpips");
-    for (g, w) in got.iter().zip(&expected) {
-        assert!((g - w).abs() <= 1e-5 * w, "{g} vs {w}");
-    }
+    assert_official_lpips(Path::new(&format!(
+        "{},{}",
+        backbone.display(),
+        lins.display()
+    )));
     // Two backbones: the missing lin layer is named with the file.
     let err = LpipsWeights::from_spec(
         Path::new(&format!("{},{}", backbone.display(), backbone.display())),
