@@ -17,6 +17,7 @@
 use crate::config::{ModelConfig, TemporalPlacement, MLP_RATIO};
 use crate::dino::Dino;
 use crate::future::NEW_BLOCK_LAYER_SCALE;
+use crate::layers::recompute;
 use crate::layers::{frame_positions, Block, BlockSpec, QkNorm, RopeTables, BLOCK_NORM_EPS};
 use burn::module::{Module, Param};
 use burn::tensor::{Device, Distribution, Tensor, TensorData};
@@ -48,6 +49,21 @@ pub struct Aggregator {
     /// Where [`Temporal::Apply`] runs the temporal blocks (from the config; not a parameter).
     #[module(skip)]
     pub placement: TemporalPlacement,
+    /// What training keeps of the frozen frame and global blocks (a run setting, not a
+    /// parameter; see [`BlockMemory`]).
+    #[module(skip)]
+    pub block_memory: BlockMemory,
+}
+
+/// What the backward keeps of a frame or global block whose parameters are frozen.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub enum BlockMemory {
+    /// Every intermediate, as autodiff records them (fastest; the most memory).
+    #[default]
+    Keep,
+    /// Only the block's input; the backward runs the block again
+    /// ([`crate::layers::recompute`]). Trainable blocks are always kept.
+    RecomputeFrozen,
 }
 
 /// What the aggregator produces for the heads.
@@ -121,6 +137,7 @@ impl Aggregator {
             temporal_layers: cfg.temporal_layers,
             num_heads: cfg.num_heads,
             placement: cfg.temporal_attention,
+            block_memory: BlockMemory::default(),
         }
     }
 
@@ -188,9 +205,13 @@ impl Aggregator {
         let mut tap_globals = Vec::new();
         let mut last_global = None;
         for l in 0..self.frame_blocks.len() {
-            let f = self.frame_blocks[l].forward(x.reshape([b * s, p, c]), Some(&rope_frame));
-            let g = self.global_blocks[l]
-                .forward(f.clone().reshape([b, s * p, c]), Some(&rope_global))
+            let f = self.run_block(&self.frame_blocks[l], x.reshape([b * s, p, c]), &rope_frame);
+            let g = self
+                .run_block(
+                    &self.global_blocks[l],
+                    f.clone().reshape([b, s * p, c]),
+                    &rope_global,
+                )
                 .reshape([b, s, p, c]);
             x = g.clone().reshape([b * s, p, c]);
             let time_block = self.temporal_layers.iter().position(|&tl| tl == l);
@@ -223,6 +244,17 @@ impl Aggregator {
             time_list,
             norm_images,
             patch_start: n_special,
+        }
+    }
+
+    /// A frame or global block, recomputed in the backward when [`BlockMemory`] asks for it
+    /// and the block is frozen.
+    fn run_block(&self, block: &Block, x: Tensor<3>, rope: &RopeTables) -> Tensor<3> {
+        match self.block_memory {
+            BlockMemory::RecomputeFrozen if recompute::is_frozen(block) => {
+                recompute::forward_recomputed(block, x, Some(rope))
+            }
+            _ => block.forward(x, Some(rope)),
         }
     }
 

@@ -29,4 +29,5 @@ pub mod pose;
 pub mod resample;
 pub mod scene;
 pub mod seeded;
+pub mod vggt;
 pub mod weights;

@@ -2,13 +2,15 @@
 //! temporal blocks → future-pose module → camera head (→ poses), plus the DPT heads.
 
 use crate::adapter::{adapt, AdaptedGaussians, OpacityMapping, ScaleRange};
-use crate::aggregator::{Aggregator, AggregatorOutput, Temporal};
+use crate::aggregator::{Aggregator, AggregatorOutput};
 use crate::camera_head::CameraHead;
 use crate::config::{ModelConfig, MotionModel};
-use crate::dpt::{depth_activation, DptHead, DptKind};
+use crate::dpt::{DptHead, DptKind};
 use crate::future::{FuturePose, FutureTokens};
 use crate::motion::{displacements, motion_tokens, still_displacements};
 use crate::pose::pose_encoding_to_extri_intri;
+use crate::vggt::run_depth_head;
+pub use crate::vggt::{Vggt, VggtDepth, VggtOutput};
 use burn::module::Module;
 use burn::tensor::{Device, Tensor};
 
@@ -283,61 +285,18 @@ impl Envision4d {
         patch_start: usize,
         size: [usize; 2],
     ) -> (Tensor<5>, Tensor<4>) {
-        depth_activation(self.depth_head.forward_chunked(
+        run_depth_head(
+            &self.depth_head,
             taps,
             patch_start,
             size,
-            None,
             self.dpt_frame_chunk,
-        ))
+        )
     }
 
-    /// Plain VGGT on `images [B, S, 3, H, W]`: the aggregator without its temporal blocks,
-    /// the camera head on every frame's own camera token (no future-pose module), and the
-    /// depth head when `depth` is [`VggtDepth::Run`]. This is the backbone stage's network and
-    /// the frozen distillation teacher (paper §3.4: "a frozen VGGT backbone").
+    /// Plain VGGT on `images [B, S, 3, H, W]` (see [`Vggt`]): the backbone stage's network
+    /// and the frozen distillation teacher (paper §3.4: "a frozen VGGT backbone").
     pub fn vggt(&self, images: Tensor<5>, depth: VggtDepth) -> VggtOutput {
-        let [_, _, _, h, w] = images.dims();
-        let last = self.aggregator.frame_blocks.len() - 1;
-        let mut keep = self.temporal_layers.to_vec();
-        keep.push(last);
-        let agg = self.aggregator.forward_with(images, &keep, Temporal::Skip);
-        let top = agg.layer(last);
-        let [b, s, _, c2] = top.dims();
-        let camera_tokens = top.slice([0..b, 0..s, 0..1, 0..c2]).reshape([b, s, c2]);
-        let pose_enc_iters = self.camera_head.forward(camera_tokens);
-        let depth = match depth {
-            VggtDepth::Run => {
-                let taps: [Tensor<4>; 4] = self.temporal_layers.map(|l| agg.layer(l));
-                Some(self.depth(&taps, agg.patch_start, [h, w]))
-            }
-            VggtDepth::Skip => None,
-        };
-        VggtOutput {
-            pose_enc_iters,
-            depth,
-        }
-    }
-}
-
-/// Whether [`Envision4d::vggt`] runs the depth head.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum VggtDepth {
-    Run,
-    Skip,
-}
-
-/// Outputs of [`Envision4d::vggt`].
-#[derive(Debug, Clone)]
-pub struct VggtOutput {
-    /// `[B, S, 9]` after each camera-head iteration; the last is the prediction.
-    pub pose_enc_iters: Vec<Tensor<3>>,
-    /// `([B, S, H, W, 1]` depth, `[B, S, H, W]` confidence`)`.
-    pub depth: Option<(Tensor<5>, Tensor<4>)>,
-}
-
-impl VggtOutput {
-    pub fn pose_enc(&self) -> Tensor<3> {
-        self.pose_enc_iters.last().expect("camera head ran").clone()
+        Vggt::of(self).forward(images, depth)
     }
 }

@@ -325,6 +325,12 @@ pub struct RunConfig {
     /// less memory, some more time; `docs/PERFORMANCE.md` has the paper-size measurement.
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub activation_checkpointing: bool,
+    /// Keep only the input of every frozen frame and global block and run the block again in
+    /// the backward (block-level activation checkpointing). Same gradients (tested); at paper
+    /// size it removes the bulk of a step's memory for one more pass of those blocks
+    /// (`docs/PERFORMANCE.md`, "A paper-size training step").
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub recompute_frozen_blocks: bool,
 }
 
 impl Default for RunConfig {
@@ -339,6 +345,7 @@ impl Default for RunConfig {
             val_clips: 8,
             max_nonfinite_steps: 10,
             activation_checkpointing: false,
+            recompute_frozen_blocks: false,
         }
     }
 }

@@ -10,7 +10,7 @@ use burn::module::Module;
 use burn::tensor::{Device, Tensor};
 use envision4d_losses::{camera_distill_weighted, depth_distill};
 use envision4d_model::checkpoint::{load_checkpoint, CheckpointKind};
-use envision4d_model::model::VggtDepth;
+use envision4d_model::model::{Vggt, VggtDepth};
 use envision4d_model::{Envision4d, ModelConfig};
 use std::path::Path;
 
@@ -35,7 +35,9 @@ impl DistillTargets {
 /// A frozen teacher: the backbone weights, never updated, run without a graph.
 #[derive(Debug, Clone)]
 pub struct FrozenTeacher {
-    model: Envision4d,
+    /// Only plain VGGT's parts: a snapshot keeps none of the other trainable heads alive
+    /// once the first update has replaced the model's (docs/PERFORMANCE.md).
+    model: Vggt,
 }
 
 impl FrozenTeacher {
@@ -45,7 +47,7 @@ impl FrozenTeacher {
         load_checkpoint(&mut model, path, CheckpointKind::Vggt1bInit)
             .map_err(|e| TrainError::checkpoint(path, format!("teacher_checkpoint: {e}")))?;
         Ok(FrozenTeacher {
-            model: model.no_grad(),
+            model: Vggt::of(&model).no_grad(),
         })
     }
 
@@ -53,7 +55,7 @@ impl FrozenTeacher {
     /// updates of `model` replace its tensors and leave the teacher's alone).
     pub fn snapshot(model: &Envision4d) -> Self {
         FrozenTeacher {
-            model: model.clone().no_grad(),
+            model: Vggt::of(model).no_grad(),
         }
     }
 
@@ -63,7 +65,7 @@ impl FrozenTeacher {
         let device = self.model.devices().into_iter().next().unwrap_or_default();
         let out = self
             .model
-            .vggt(images.detach().to_device(&device), VggtDepth::Run);
+            .forward(images.detach().to_device(&device), VggtDepth::Run);
         let pose_enc = out.pose_enc().detach();
         let (depth, _) = out
             .depth

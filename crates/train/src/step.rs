@@ -17,6 +17,7 @@ use burn::grad_clipping::GradientClippingConfig;
 use burn::optim::{AdamConfig, GradientsParams, ModuleOptimizer};
 use burn::tensor::{DType, Device, Tensor};
 use envision4d_losses::{psnr_from_mse, Lpips, LpipsNet, LpipsStatus, LpipsWeights, RgbLoss};
+use envision4d_model::aggregator::BlockMemory;
 use envision4d_model::host_read;
 use envision4d_model::scene::{predict_scene_with, Motion};
 use envision4d_model::Envision4d;
@@ -153,7 +154,7 @@ fn make_optimizer(config: &TrainConfig) -> ModuleOptimizer {
 
 /// Whether the frozen teacher's weights are the model's initial weights: its checkpoint is
 /// the init checkpoint (the default), or both are random (`init = "random"`).
-fn teacher_is_init(config: &TrainConfig) -> bool {
+pub(crate) fn teacher_is_init(config: &TrainConfig) -> bool {
     match (&config.teacher_checkpoint, &config.init_checkpoint) {
         (None, Some(_)) => true,
         (Some(t), Some(i)) => t == i,
@@ -215,7 +216,10 @@ impl Trainer {
             _ => None,
         };
         let split = ParamSplit::new(&model, &config.freeze);
-        let model = detach_frozen(model, &split);
+        let mut model = detach_frozen(model, &split);
+        if config.run.recompute_frozen_blocks {
+            model.aggregator.block_memory = BlockMemory::RecomputeFrozen;
+        }
         let optim = make_optimizer(&config);
         Ok(Trainer {
             model,

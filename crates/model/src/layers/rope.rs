@@ -52,6 +52,15 @@ impl RopeTables {
         }
     }
 
+    /// The tables without autodiff tracking (the same values on an autodiff device's inner
+    /// backend; unchanged elsewhere).
+    pub fn inner(&self) -> Self {
+        RopeTables {
+            cos: self.cos.clone().inner(),
+            sin: self.sin.clone().inner(),
+        }
+    }
+
     /// Rotates `x` of shape `[B, heads, N, head_dim]`.
     pub fn apply(&self, x: Tensor<4>) -> Tensor<4> {
         let [b, h, n, d] = x.dims();
