@@ -13,6 +13,8 @@ use envision4d_train::StepReport;
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::{Path, PathBuf};
 
+mod memory;
+
 #[derive(Args, Debug)]
 pub struct TrainArgs {
     /// Training config (TOML; see configs/waymo.toml, configs/synth-tiny.toml).
@@ -33,6 +35,10 @@ pub struct TrainArgs {
     /// config with several seeds, as the motion benchmark trains them.
     #[arg(long)]
     seed: Option<u64>,
+    /// Overrides one config key before the config is read, e.g. `--set optim.batch_size=1`
+    /// or `--set model.image_size=[280,518]` (a dotted key; the value is TOML). Repeatable.
+    #[arg(long = "set", value_name = "KEY=VALUE")]
+    sets: Vec<String>,
     /// Overrides `[run] out_dir`.
     #[arg(long)]
     out_dir: Option<PathBuf>,
@@ -73,7 +79,7 @@ fn reduce_for(choice: ReduceChoice, specs: &[String]) -> Result<GradientReduce, 
 }
 
 pub fn run(args: TrainArgs) -> Result<()> {
-    let mut cfg = envision4d_train::load(&args.config)?;
+    let mut cfg = envision4d_train::load::load_with_overrides(&args.config, &args.sets)?;
     if let Some(seed) = args.seed {
         cfg.seed = seed;
     }
@@ -125,6 +131,13 @@ pub fn run(args: TrainArgs) -> Result<()> {
         summary.last_checkpoint.display(),
         out.join(envision4d_train::run::LOG_FILE).display()
     );
+    // On the CPU backend the host's peak is the step's memory, which the model estimates
+    // (one device; with several, each holds a share of the batch).
+    if args.backend == BackendChoice::Cpu && args.devices.is_empty() {
+        if let Some(line) = memory::describe_peak(summary.estimated_peak_bytes) {
+            println!("{line}");
+        }
+    }
     if let Some(v) = summary.last_validation {
         println!("last validation: {}", describe(&v));
     }
@@ -154,6 +167,8 @@ fn dry_run(
         split.trainable_count + split.frozen_count,
         args.backend
     );
+    let estimate = envision4d_train::memory::estimate(&cfg, &model, &split);
+    println!("{}", memory::describe_estimate(&estimate, args.backend));
     let files = [
         ("init_checkpoint", cfg.init_checkpoint.as_deref()),
         ("teacher_checkpoint", cfg.teacher_checkpoint.as_deref()),

@@ -7,12 +7,17 @@
 //! ```text
 //! cargo bench -p envision4d-train --bench train_step -- [--config configs/waymo.toml]
 //!     [--preset paper|tiny] [--image HxW] [--batch B] [--step S] [--repeats N]
-//!     [--device cpu|wgpu|cuda] [--checkpointing]
+//!     [--device cpu|wgpu|cuda] [--checkpointing] [--set KEY=VALUE]...
 //! ```
 //!
 //! `--step` is the schedule step the batch is trained at (default: the first after the
 //! static warm-up, so the motion head and every target run). `--checkpointing` turns on
-//! Burn's balanced activation checkpointing on the autodiff device. The images are uniform
+//! Burn's balanced activation checkpointing on the autodiff device. `--set` overrides one
+//! config key before the config is read (`--set model.embed_dim=128`,
+//! `--set run.recompute_frozen_blocks=true`; the value is TOML). A line `# memory model:`
+//! gives the estimate of `envision4d_train::memory` (first and later steps) and the counts
+//! it multiplies, which `scripts/memory_fit.sh` fits against the measured peaks; the warm-up
+//! line carries the first step's peak RSS. The images are uniform
 //! noise. One untimed step warms the allocator and, on a GPU, the kernel caches; each timed
 //! step prints `train_step_s=<s> peak_rss_gib=<g> device_reserved_gib=<g>`: the host's peak
 //! RSS, and the device memory pool's reserved bytes after the step (GPU backends; `nan` on
@@ -61,7 +66,13 @@ fn main() {
     } else {
         root.join(&path)
     };
-    let mut cfg = envision4d_train::load(&file).unwrap_or_else(|e| panic!("{e}"));
+    let sets: Vec<String> = args
+        .windows(2)
+        .filter(|w| w[0] == "--set")
+        .map(|w| w[1].clone())
+        .collect();
+    let mut cfg =
+        envision4d_train::load::load_with_overrides(&file, &sets).unwrap_or_else(|e| panic!("{e}"));
     cfg.init = Init::Random;
     cfg.init_checkpoint = None;
     cfg.init_fresh.clear();
@@ -116,6 +127,23 @@ fn main() {
         t.elapsed().as_secs_f64(),
         cfg.random_weights().join(", "),
     );
+    let m = envision4d_train::memory::estimate(&cfg, &trainer.model, &trainer.split);
+    let gib = envision4d_train::memory::GIB;
+    // The exact terms of each peak (all but the process constant and the activations).
+    let exact_first = m.first_step() - m.runtime - m.activations;
+    let exact_later = m.later_steps() - m.runtime - m.activations;
+    println!(
+        "# memory model: first_gib={:.3} later_gib={:.3} exact_first_bytes={exact_first:.0} \
+         exact_later_bytes={exact_later:.0} block_token_channels={:.0} \
+         recomputed_token_channels={:.0} dpt_pixel_channels={:.0} rendered_pixels={:.0} lpips_pixels={:.0}",
+        m.first_step() / gib,
+        m.later_steps() / gib,
+        m.counts.block_token_channels,
+        m.counts.recomputed_token_channels,
+        m.counts.dpt_pixel_channels,
+        m.counts.rendered_pixels,
+        m.counts.lpips_pixels,
+    );
     let clips: Vec<HostClip> = (0..b as u64).map(|k| noise_clip(n, h, w, k)).collect();
     let batch = Batch::from_clips(&clips, cfg.model.context_frames, false, &device)
         .unwrap_or_else(|e| panic!("{e}"));
@@ -126,8 +154,11 @@ fn main() {
         let s = t.elapsed().as_secs_f64();
         if i == 0 {
             println!(
-                "# untimed warm-up step: {s:.2} s, outcome {:?}, loss {:.4}",
-                r.outcome, r.total
+                "# untimed warm-up step: {s:.2} s, outcome {:?}, loss {:.4}, \
+                 first_step_peak_rss_gib={:.3}",
+                r.outcome,
+                r.total,
+                peak_rss_gib()
             );
             continue;
         }

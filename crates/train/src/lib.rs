@@ -25,6 +25,7 @@ pub mod grad_clip;
 pub mod init;
 pub mod load;
 pub mod log;
+pub mod memory;
 pub mod parallel;
 pub mod run;
 pub mod schedule;

@@ -14,6 +14,43 @@ pub fn load(path: &Path) -> Result<TrainConfig> {
     parse(&text, path)
 }
 
+/// [`load`] with `KEY=VALUE` overrides written over the file first (`train --set`): a
+/// dotted key names nested tables (`model.image_size=[280,518]`, `optim.batch_size=1`);
+/// the value is TOML, and a bare word is taken as a string (`model.preset=tiny`).
+pub fn load_with_overrides(path: &Path, sets: &[String]) -> Result<TrainConfig> {
+    let text = std::fs::read_to_string(path).map_err(crate::error::read(path))?;
+    parse(&with_overrides(&text, sets, path)?, path)
+}
+
+/// `text` with `sets` laid over it (see [`load_with_overrides`]).
+pub fn with_overrides(text: &str, sets: &[String], path: &Path) -> Result<String> {
+    let err = |message: String| TrainError::Parse {
+        path: path.to_path_buf(),
+        message,
+    };
+    let mut doc: toml::Table = toml::from_str(text).map_err(|e| err(e.to_string()))?;
+    for set in sets {
+        let (key, value) = set
+            .split_once('=')
+            .ok_or_else(|| err(format!("--set {set:?}: expected KEY=VALUE")))?;
+        let value = toml::from_str::<toml::Table>(&format!("v = {value}"))
+            .ok()
+            .and_then(|mut t| t.remove("v"))
+            .unwrap_or_else(|| toml::Value::String(value.to_owned()));
+        let mut over = value;
+        for part in key.trim().rsplit('.') {
+            if part.is_empty() {
+                return Err(err(format!("--set {set:?}: empty key part")));
+            }
+            over = toml::Value::Table(toml::Table::from_iter([(part.to_owned(), over)]));
+        }
+        if let toml::Value::Table(t) = over {
+            overlay(&mut doc, t);
+        }
+    }
+    toml::to_string(&doc).map_err(|e| err(e.to_string()))
+}
+
 /// Parses and validates config text; `path` only labels errors.
 pub fn parse(text: &str, path: &Path) -> Result<TrainConfig> {
     let parse_err = |message: String| TrainError::Parse {

@@ -60,6 +60,9 @@ pub struct RunSummary {
     /// The final model (safetensors with its config), `out_dir/model.safetensors`.
     pub model: PathBuf,
     pub last_validation: Option<ValReport>,
+    /// The memory model's peak for this config's later steps (bytes of host memory on the
+    /// CPU backend; `crate::memory`), to print beside the measured peak.
+    pub estimated_peak_bytes: f64,
 }
 
 /// The checkpoint directory `--resume` names: `dir` itself, or the newest under
@@ -242,6 +245,8 @@ pub fn run(
         ));
     }
     let mut trainer = start_trainer(&cfg, device, resume_dir.as_deref(), &ckpt_root, obs)?;
+    let estimated_peak_bytes =
+        crate::memory::estimate(&cfg, &trainer.model, &trainer.split).later_steps();
     if devices.len() > 1 {
         trainer.prepare_devices(devices)?;
     }
@@ -335,6 +340,7 @@ pub fn run(
         last_checkpoint,
         model,
         last_validation: last_val,
+        estimated_peak_bytes,
     })
 }
 

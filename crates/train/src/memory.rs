@@ -1,0 +1,273 @@
+//! How much memory one training step needs: a model of the peak, for `train --dry-run` and
+//! the "Will it fit?" table of `docs/TRAINING.md`.
+//!
+//! The peak is a sum of exact terms and fitted ones. Exact: the parameters (f32), LPIPS's
+//! VGG, the trainable parameters' gradients, Adam's two moments (from the second step on)
+//! and the teacher's own copy of what it shares with a trained model. Fitted: what autodiff
+//! keeps for the backward, as bytes per unit of four counts the config decides:
+//! - token-channels of the transformer blocks whose intermediates are kept (the blocks the
+//!   gradient passes through: trainable ones, and frozen ones after the first trainable
+//!   layer unless `run.recompute_frozen_blocks`), and of the frozen blocks recomputed
+//!   instead (they keep their input);
+//! - pixel-channels of the DPT heads that train (depth and Gaussians per context frame,
+//!   motion per lifted map);
+//! - rendered pixels (rasterizer, L1), and rendered pixels through LPIPS;
+//! plus a constant for the process itself. The coefficients come from small measured runs
+//! of the training-step benchmark (`scripts/memory_fit.sh`, `docs/PERFORMANCE.md`); the
+//! estimate is the host's peak resident memory of a CPU step (f32). On a GPU the same
+//! tensors live in device memory, without the process constant, plus the pool's slack,
+//! which no GPU measured yet.
+
+use crate::config::{FreezeGroup, Stage, Teacher, TrainConfig};
+use crate::freeze::ParamSplit;
+use burn::module::{Module, ModuleVisitor, Param, ParamId};
+use burn::tensor::Tensor;
+use envision4d_model::config::{MotionModel, TemporalPlacement};
+use envision4d_model::model::Vggt;
+use envision4d_model::Envision4d;
+use std::collections::HashSet;
+
+/// Bytes of one f32.
+const F32: f64 = 4.0;
+/// Parameters of LPIPS's VGG16 feature stack (conv1_1 … conv5_3) and its five linear heads.
+pub const LPIPS_VGG_PARAMS: usize = 14_714_688 + 1_472;
+
+/// The fitted coefficients (bytes per unit); `scripts/memory_fit.sh` prints them.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Coefficients {
+    /// The process without tensors (binary, thread pools, allocator arenas).
+    pub runtime: f64,
+    /// Per token-channel of a kept transformer block.
+    pub block: f64,
+    /// Per token-channel of a recomputed frozen block.
+    pub recomputed: f64,
+    /// Per pixel-channel of a training DPT head's map.
+    pub dpt: f64,
+    /// Per rendered pixel (rasterizer and L1 state).
+    pub render: f64,
+    /// Per rendered pixel through LPIPS's VGG.
+    pub lpips: f64,
+}
+
+/// Fitted on this project's dev machine (burn-flex, 2 threads) by `scripts/memory_fit.sh`
+/// (11 runs; the largest ratio of estimate to measured peak 1.10, three held-out runs
+/// included); see the module docs.
+pub const FITTED: Coefficients = Coefficients {
+    runtime: 9.245258e+07,
+    block: 1.427922e+02,
+    recomputed: 7.447520e+01,
+    dpt: 0.000000e+00,
+    render: 1.904245e+03,
+    lpips: 5.764618e+03,
+};
+
+/// The counts the fitted terms multiply.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Counts {
+    pub block_token_channels: f64,
+    pub recomputed_token_channels: f64,
+    pub dpt_pixel_channels: f64,
+    pub rendered_pixels: f64,
+    pub lpips_pixels: f64,
+}
+
+/// One step's peak memory by part, in bytes.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StepMemory {
+    pub runtime: f64,
+    /// Every parameter of the model (frozen and trainable).
+    pub parameters: f64,
+    pub lpips_weights: f64,
+    pub gradients: f64,
+    /// Adam's two moments: absent during the first step.
+    pub optimizer: f64,
+    /// The teacher's weights beyond what it shares with the model, in the first step and
+    /// in later ones (a snapshot shares everything until the first update).
+    pub teacher_first: f64,
+    pub teacher_later: f64,
+    pub activations: f64,
+    pub counts: Counts,
+}
+
+impl StepMemory {
+    /// Peak of the first step.
+    pub fn first_step(&self) -> f64 {
+        self.runtime
+            + self.parameters
+            + self.lpips_weights
+            + self.gradients
+            + self.teacher_first
+            + self.activations
+    }
+
+    /// Peak of every later step (Adam's state exists): the run's peak.
+    pub fn later_steps(&self) -> f64 {
+        self.first_step() - self.teacher_first + self.teacher_later + self.optimizer
+    }
+
+    /// What a GPU would hold: the same tensors without the host process.
+    pub fn device_tensors(&self) -> f64 {
+        self.later_steps() - self.runtime
+    }
+}
+
+struct Count<'a> {
+    only: Option<&'a HashSet<ParamId>>,
+    elements: usize,
+}
+
+impl ModuleVisitor for Count<'_> {
+    fn visit_float<const D: usize>(&mut self, param: &Param<Tensor<D>>) {
+        if self.only.is_none_or(|ids| ids.contains(&param.id)) {
+            self.elements += param.lazy_shape().num_elements();
+        }
+    }
+}
+
+fn count<M: Module>(m: &M, only: Option<&HashSet<ParamId>>) -> usize {
+    let mut c = Count { only, elements: 0 };
+    m.visit(&mut c);
+    c.elements
+}
+
+/// The counts of `cfg` (see the module docs), given which groups are frozen.
+pub fn counts(cfg: &TrainConfig) -> Counts {
+    let m = &cfg.model;
+    let frozen = |g: FreezeGroup| cfg.freeze.contains(&g);
+    let b = cfg.optim.batch_size as f64;
+    let [h, w] = m.image_size;
+    let pixels = (h * w) as f64;
+    let (context, frames) = (m.context_frames, m.num_frames());
+    let backbone_stage = cfg.stage == Stage::Backbone;
+    // The backbone stage runs plain VGGT on every frame; Envision4D on the context frames.
+    let seen = if backbone_stage { frames } else { context } as f64;
+    let tokens = b * seen * m.tokens_per_frame() as f64;
+    let recompute = cfg.run.recompute_frozen_blocks;
+    let in_layer = !backbone_stage && m.temporal_attention == TemporalPlacement::InLayer;
+    let temporal_trains = !backbone_stage
+        && m.temporal_attention != TemporalPlacement::None
+        && !frozen(FreezeGroup::TimeBlocks);
+
+    // The first aggregator layer from which the gradient flows: 0 when the patch embedding,
+    // the tokens or any frame/global block trains; after the first temporal layer when only
+    // in-layer temporal blocks do.
+    let backbone_trains = !frozen(FreezeGroup::PatchEmbed)
+        || !frozen(FreezeGroup::Tokens)
+        || !frozen(FreezeGroup::FrameBlocks)
+        || !frozen(FreezeGroup::GlobalBlocks);
+    let first_temporal = m.temporal_layers.iter().copied().min().unwrap_or(m.depth);
+    let start = if backbone_trains {
+        Some(0)
+    } else if in_layer && temporal_trains {
+        Some(first_temporal + 1)
+    } else {
+        None
+    };
+    let (mut channels, mut recomputed) = (0.0, 0.0);
+    if let Some(start) = start {
+        for group in [FreezeGroup::FrameBlocks, FreezeGroup::GlobalBlocks] {
+            let layer_channels = m.depth.saturating_sub(start) as f64 * m.embed_dim as f64;
+            if frozen(group) && recompute {
+                recomputed += layer_channels;
+            } else {
+                channels += layer_channels;
+            }
+        }
+    }
+    if temporal_trains {
+        channels += m.temporal_layers.len() as f64 * m.embed_dim as f64;
+    }
+    let mut block_token_channels = tokens * channels;
+    if !frozen(FreezeGroup::PatchEmbed) {
+        let dino_tokens = b * seen * (1 + m.num_register_tokens) as f64
+            + b * seen * (m.patch_grid().0 * m.patch_grid().1) as f64;
+        block_token_channels += dino_tokens * (m.dino.depth * m.dino.embed_dim) as f64;
+    }
+
+    let mut maps = 0.0;
+    if !frozen(FreezeGroup::DepthHead) {
+        maps += seen;
+    }
+    if !backbone_stage {
+        if !frozen(FreezeGroup::GsHead) {
+            maps += seen;
+        }
+        if !frozen(FreezeGroup::MotionHead) {
+            maps += match m.motion_model {
+                MotionModel::Lifting => (context * (frames - 1)) as f64,
+                MotionModel::LinearVelocity => context as f64,
+                MotionModel::Off => 0.0,
+            };
+        }
+    }
+    let rendered = if backbone_stage {
+        0.0
+    } else {
+        b * frames as f64 * pixels
+    };
+    let lpips = if cfg.loss.lambda_lpips > 0.0 {
+        rendered
+    } else {
+        0.0
+    };
+    Counts {
+        block_token_channels,
+        recomputed_token_channels: tokens * recomputed,
+        dpt_pixel_channels: b * maps * pixels * m.dpt.features as f64,
+        rendered_pixels: rendered,
+        lpips_pixels: lpips,
+    }
+}
+
+/// The estimate for `cfg`, whose model (built, its parameters may stay lazy) and frozen
+/// split are given, with coefficients `k`.
+pub fn estimate_with(
+    cfg: &TrainConfig,
+    model: &Envision4d,
+    split: &ParamSplit,
+    k: &Coefficients,
+) -> StepMemory {
+    let trainable = split.trainable_count as f64;
+    let all = trainable + split.frozen_count as f64;
+    let c = counts(cfg);
+    let teaches = cfg.stage == Stage::Envision4d && cfg.teacher == Teacher::Backbone;
+    let vggt = Vggt::of(model);
+    let trainable_ids: HashSet<ParamId> = split.trainable.iter().copied().collect();
+    let (teacher_first, teacher_later) = match (teaches, crate::step::teacher_is_init(cfg)) {
+        (false, _) => (0.0, 0.0),
+        // A snapshot: its trainable parts are copied by the first update.
+        (true, true) => (0.0, F32 * count(&vggt, Some(&trainable_ids)) as f64),
+        // A separate load: plain VGGT's weights a second time, from the start.
+        (true, false) => {
+            let own = F32 * count(&vggt, None) as f64;
+            (own, own)
+        }
+    };
+    StepMemory {
+        runtime: k.runtime,
+        parameters: F32 * all,
+        lpips_weights: if cfg.loss.lambda_lpips > 0.0 {
+            F32 * LPIPS_VGG_PARAMS as f64
+        } else {
+            0.0
+        },
+        gradients: F32 * trainable,
+        optimizer: 2.0 * F32 * trainable,
+        teacher_first,
+        teacher_later,
+        activations: k.block * c.block_token_channels
+            + k.recomputed * c.recomputed_token_channels
+            + k.dpt * c.dpt_pixel_channels
+            + k.render * c.rendered_pixels
+            + k.lpips * c.lpips_pixels,
+        counts: c,
+    }
+}
+
+/// [`estimate_with`] the [`FITTED`] coefficients.
+pub fn estimate(cfg: &TrainConfig, model: &Envision4d, split: &ParamSplit) -> StepMemory {
+    estimate_with(cfg, model, split, &FITTED)
+}
+
+/// Bytes in one GiB.
+pub const GIB: f64 = (1u64 << 30) as f64;
