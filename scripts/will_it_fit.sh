@@ -17,10 +17,17 @@ row() {
     local label=$1
     shift
     local out
-    out=$("$BIN" train --config configs/waymo.toml --dry-run "$@" 2>&1)
+    out=$("$BIN" train --config configs/waymo.toml --dry-run "$@" 2>&1) || {
+        printf 'dry run failed (%s):\n%s\n' "$*" "$out" >&2
+        exit 1
+    }
     local device host
-    device=$(grep -o 'on a GPU: about [0-9.]*' <<< "$out" | grep -o '[0-9.]*$')
-    host=$(grep -o 'later steps [0-9.]*' <<< "$out" | grep -o '[0-9.]*$')
+    device=$(grep -o 'on a GPU: about [0-9.]*' <<< "$out" | grep -o '[0-9.]*$' || true)
+    host=$(grep -o 'later steps [0-9.]*' <<< "$out" | grep -o '[0-9.]*$' || true)
+    if [ -z "$device" ] || [ -z "$host" ]; then
+        printf 'no memory estimate in the dry run (%s):\n%s\n' "$*" "$out" >&2
+        exit 1
+    fi
     local cells=""
     for gb in 24 40 80; do
         # GB of a GPU's box as GiB (24 GB cards hold 24 GiB; A100/H100 40/80 GB likewise).

@@ -133,10 +133,11 @@ pub fn run(args: TrainArgs) -> Result<()> {
     );
     // On the CPU backend the host's peak is the step's memory, which the model estimates
     // (one device; with several, each holds a share of the batch).
-    if args.backend == BackendChoice::Cpu && args.devices.is_empty() {
-        if let Some(line) = memory::describe_peak(summary.estimated_peak_bytes) {
-            println!("{line}");
-        }
+    if args.backend == BackendChoice::Cpu
+        && args.devices.is_empty()
+        && let Some(line) = memory::describe_peak(summary.estimated_peak_bytes)
+    {
+        println!("{line}");
     }
     if let Some(v) = summary.last_validation {
         println!("last validation: {}", describe(&v));

@@ -115,8 +115,8 @@ fn main() {
     let (trainable, frozen) = (trainer.split.trainable_count, trainer.split.frozen_count);
     println!(
         "# train step: {} widths, batch {b} x {n} frames at {h}x{w}, schedule step {step}, \
-         {:.1} M trainable / {:.1} M frozen parameters, checkpointing {checkpointing}, built in \
-         {:.1} s; random weights: {}",
+         {:.1} M trainable / {:.1} M frozen parameters, checkpointing {checkpointing}, \
+         recomputed frozen blocks {}, built in {:.1} s; random weights: {}",
         if cfg.model.embed_dim >= envision4d_model::ModelConfig::paper().embed_dim {
             "paper"
         } else {
@@ -124,6 +124,7 @@ fn main() {
         },
         trainable as f64 / 1e6,
         frozen as f64 / 1e6,
+        cfg.run.recompute_frozen_blocks,
         t.elapsed().as_secs_f64(),
         cfg.random_weights().join(", "),
     );

@@ -19,6 +19,10 @@ pub fn load(path: &Path) -> Result<TrainConfig> {
 /// the value is TOML, and a bare word is taken as a string (`model.preset=tiny`).
 pub fn load_with_overrides(path: &Path, sets: &[String]) -> Result<TrainConfig> {
     let text = std::fs::read_to_string(path).map_err(crate::error::read(path))?;
+    if sets.is_empty() {
+        // Parse the file as written, so errors point at its own lines.
+        return parse(&text, path);
+    }
     parse(&with_overrides(&text, sets, path)?, path)
 }
 
@@ -33,10 +37,14 @@ pub fn with_overrides(text: &str, sets: &[String], path: &Path) -> Result<String
         let (key, value) = set
             .split_once('=')
             .ok_or_else(|| err(format!("--set {set:?}: expected KEY=VALUE")))?;
-        let value = toml::from_str::<toml::Table>(&format!("v = {value}"))
-            .ok()
-            .and_then(|mut t| t.remove("v"))
-            .unwrap_or_else(|| toml::Value::String(value.to_owned()));
+        let value = value.trim();
+        let value = match toml::from_str::<toml::Table>(&format!("v = {value}")) {
+            Ok(mut t) if t.len() == 1 => t
+                .remove("v")
+                .ok_or_else(|| err(format!("--set {set:?}: one value expected")))?,
+            Ok(_) => return Err(err(format!("--set {set:?}: one value expected"))),
+            Err(_) => toml::Value::String(value.to_owned()),
+        };
         let mut over = value;
         for part in key.trim().rsplit('.') {
             if part.is_empty() {

@@ -4,15 +4,17 @@
 //! The peak is a sum of exact terms and fitted ones. Exact: the parameters (f32), LPIPS's
 //! VGG, the trainable parameters' gradients, Adam's two moments (from the second step on)
 //! and the teacher's own copy of what it shares with a trained model. Fitted: what autodiff
-//! keeps for the backward, as bytes per unit of four counts the config decides:
+//! keeps for the backward, as bytes per unit of five counts the config decides, plus a
+//! constant for the process itself:
 //! - token-channels of the transformer blocks whose intermediates are kept (the blocks the
 //!   gradient passes through: trainable ones, and frozen ones after the first trainable
 //!   layer unless `run.recompute_frozen_blocks`), and of the frozen blocks recomputed
 //!   instead (they keep their input);
 //! - pixel-channels of the DPT heads that train (depth and Gaussians per context frame,
 //!   motion per lifted map);
-//! - rendered pixels (rasterizer, L1), and rendered pixels through LPIPS;
-//! plus a constant for the process itself. The coefficients come from small measured runs
+//! - rendered pixels (rasterizer, L1), and rendered pixels through LPIPS.
+//!
+//! The coefficients come from small measured runs
 //! of the training-step benchmark (`scripts/memory_fit.sh`, `docs/PERFORMANCE.md`); the
 //! estimate is the host's peak resident memory of a CPU step (f32). On a GPU the same
 //! tensors live in device memory, without the process constant, plus the pool's slack,
@@ -41,7 +43,9 @@ pub struct Coefficients {
     pub block: f64,
     /// Per token-channel of a recomputed frozen block.
     pub recomputed: f64,
-    /// Per pixel-channel of a training DPT head's map.
+    /// Per pixel-channel of a training DPT head's map. The fit grid trains all three heads at
+    /// 4 frames, where this term grows with the block and rendered-pixel terms, and the fit
+    /// gave it 0: their coefficients carry the heads' memory (docs/PERFORMANCE.md).
     pub dpt: f64,
     /// Per rendered pixel (rasterizer and L1 state).
     pub render: f64,
@@ -174,7 +178,10 @@ pub fn counts(cfg: &TrainConfig) -> Counts {
             }
         }
     }
-    if temporal_trains {
+    // Temporal blocks are never recomputed; they keep everything when they train or when
+    // the gradient passes through them to a training backbone.
+    let temporal_exists = !backbone_stage && m.temporal_attention != TemporalPlacement::None;
+    if temporal_exists && (temporal_trains || backbone_trains) {
         channels += m.temporal_layers.len() as f64 * m.embed_dim as f64;
     }
     let mut block_token_channels = tokens * channels;

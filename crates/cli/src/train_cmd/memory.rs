@@ -27,16 +27,18 @@ pub fn peak_rss_bytes() -> Option<f64> {
 pub fn describe_estimate(m: &StepMemory, backend: BackendChoice) -> String {
     let g = |b: f64| format!("{:.2}", b / GIB);
     let teacher = if m.teacher_first > 0.0 {
-        format!("teacher {}", g(m.teacher_later))
-    } else {
+        format!(" + teacher {}", g(m.teacher_later))
+    } else if m.teacher_later > 0.0 {
         format!(
-            "teacher copy {} (after the first update)",
+            " + teacher copy {} (after the first update)",
             g(m.teacher_later)
         )
+    } else {
+        String::new()
     };
     let mut out = format!(
         "memory (estimate; docs/TRAINING.md \"Will it fit?\"): first step {} GiB, later steps \
-         {} GiB\n  = parameters {} + LPIPS VGG {} + gradients {} + Adam {} + {teacher} + \
+         {} GiB\n  = parameters {} + LPIPS VGG {} + gradients {} + Adam {}{teacher} + \
          activations {} + process {}",
         g(m.first_step()),
         g(m.later_steps()),
@@ -47,15 +49,15 @@ pub fn describe_estimate(m: &StepMemory, backend: BackendChoice) -> String {
         g(m.activations),
         g(m.runtime),
     );
-    if backend == BackendChoice::Cpu {
-        if let Some(total) = host_memory_bytes() {
-            let verdict = if m.later_steps() <= total {
-                "fits"
-            } else {
-                "does NOT fit"
-            };
-            out.push_str(&format!("\n  this machine has {} GiB: {verdict}", g(total)));
-        }
+    if backend == BackendChoice::Cpu
+        && let Some(total) = host_memory_bytes()
+    {
+        let verdict = if m.later_steps() <= total {
+            "fits"
+        } else {
+            "does NOT fit"
+        };
+        out.push_str(&format!("\n  this machine has {} GiB: {verdict}", g(total)));
     }
     out.push_str(&format!(
         "\n  on a GPU: about {} GiB of device memory (the same tensors without the host \

@@ -3,9 +3,9 @@
 //! In the paper's training (§3.2, §3.4) the VGGT blocks are frozen, yet the in-layer
 //! temporal blocks feed their outputs into the next frozen layer, so the gradient of every
 //! later head flows back through the frozen frame and global blocks after the first temporal
-//! layer (layers 5–23 of 24). Autodiff keeps every intermediate of those blocks: about
-//! 270 MB per block for one clip of 4 frames at 350x518, some 10 GB over the 38 blocks, the
-//! bulk of a paper-size step's memory (docs/PERFORMANCE.md).
+//! layer (layers 5–23 of 24). Autodiff keeps every intermediate of those blocks: for the
+//! 1 860 tokens of a clip's 2 context frames at 350x518, well over 100 MB per block and
+//! several GB over the 38 blocks (docs/PERFORMANCE.md, "Memory model").
 //!
 //! A recomputed block runs its forward without a graph and records one node that keeps the
 //! block's input. Its backward runs the block's forward again on a private graph, from that
@@ -88,22 +88,20 @@ where
 }
 
 /// Attaches `output` (computed without a graph) to `input` through a [`RecomputeBackward`]
-/// node, when `input` is an autodiff tensor of backend `B` with strategy `C`; gives `input`
-/// back otherwise.
+/// node, when `input` is an autodiff tensor of backend `B` with strategy `C`; `None`
+/// otherwise.
 fn attach<B: Backend, C: CheckpointStrategy>(
-    input: DispatchTensor,
+    input: &DispatchTensor,
     output: &DispatchTensor,
     state: &Recompute,
-) -> Result<DispatchTensor, DispatchTensor>
+) -> Option<DispatchTensor>
 where
     DispatchTensor: DispatchKindConversion<B> + DispatchKindConversion<Autodiff<B, C>>,
 {
-    let x = match <DispatchTensor as DispatchKindConversion<Autodiff<B, C>>>::try_into_backend(
-        input.clone(),
-    ) {
-        Ok(x) => x.float(),
-        Err(_) => return Err(input),
-    };
+    let x =
+        <DispatchTensor as DispatchKindConversion<Autodiff<B, C>>>::try_into_backend(input.clone())
+            .ok()?
+            .float();
     let y = <DispatchTensor as DispatchKindConversion<B>>::try_into_backend(output.clone())
         .expect("the block's output lives on its input's backend")
         .float();
@@ -115,7 +113,7 @@ where
         OpsKind::Tracked(prep) => prep.finish(state.clone(), y),
         OpsKind::UnTracked(prep) => prep.finish(y),
     };
-    Ok(
+    Some(
         <DispatchTensor as DispatchKindConversion<Autodiff<B, C>>>::from_backend(
             BackendTensor::Float(out),
         ),
@@ -139,23 +137,15 @@ pub fn forward_recomputed(block: &Block, x: Tensor<3>, rope: Option<&RopeTables>
         .forward(state.input.clone(), state.rope.as_ref())
         .into_dispatch();
     let x = x.into_dispatch();
-    let x = match attach::<burn::backend::Flex, NoCheckpointing>(x, &output, &state) {
-        Ok(y) => return Tensor::from_dispatch(y),
-        Err(x) => x,
-    };
-    let x = match attach::<burn::backend::Flex, BalancedCheckpointing>(x, &output, &state) {
-        Ok(y) => return Tensor::from_dispatch(y),
-        Err(x) => x,
-    };
-    let x = match attach::<burn::backend::Cube, NoCheckpointing>(x, &output, &state) {
-        Ok(y) => return Tensor::from_dispatch(y),
-        Err(x) => x,
-    };
-    match attach::<burn::backend::Cube, BalancedCheckpointing>(x, &output, &state) {
-        Ok(y) => Tensor::from_dispatch(y),
-        Err(x) => panic!(
-            "recomputed block on an unsupported backend: {:?}",
-            Tensor::<3>::from_dispatch(x).device()
-        ),
-    }
+    let y = attach::<burn::backend::Flex, NoCheckpointing>(&x, &output, &state)
+        .or_else(|| attach::<burn::backend::Flex, BalancedCheckpointing>(&x, &output, &state))
+        .or_else(|| attach::<burn::backend::Cube, NoCheckpointing>(&x, &output, &state))
+        .or_else(|| attach::<burn::backend::Cube, BalancedCheckpointing>(&x, &output, &state))
+        .unwrap_or_else(|| {
+            panic!(
+                "recomputed block on an unsupported backend: {:?}",
+                Tensor::<3>::from_dispatch(x.clone()).device()
+            )
+        });
+    Tensor::from_dispatch(y)
 }

@@ -1,9 +1,11 @@
 //! Integration tests of envision4d-train (kept small: CI has 2 cores).
 
 mod augment;
+mod checkpointing;
 mod common;
 mod config;
 mod eval;
+mod memory;
 mod pose;
 mod run;
 mod schedule;
