@@ -15,8 +15,14 @@ cd "$(dirname "$0")/.."
 OUT=${1:-runs/memory-fit}
 mkdir -p "$OUT"
 export CARGO_TARGET_DIR=${CARGO_TARGET_DIR:-$HOME/.cache/envision4d-target}
-cargo bench --workspace --bench train_step --no-run 2> "$OUT/build.log"
-BENCH=$(ls -t "$CARGO_TARGET_DIR"/release/deps/train_step-* | grep -v '\.d$' | head -1)
+# The benchmark binary cargo built just now (not an older one with other features).
+BENCH=$(cargo bench --workspace --bench train_step --no-run --message-format=json \
+    2> "$OUT/build.log" | python3 -c '
+import json, sys
+exe = [m["executable"] for m in map(json.loads, sys.stdin)
+       if m.get("reason") == "compiler-artifact" and m.get("executable")
+       and m["target"]["name"] == "train_step"]
+print(exe[-1])')
 
 KEPT=(--set run.recompute_frozen_blocks=false)
 TINY=("${KEPT[@]}" --set model.preset=tiny)
