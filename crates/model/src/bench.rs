@@ -24,15 +24,22 @@ pub fn device(name: Option<&str>) -> Result<Device, String> {
     }
 }
 
+/// The kB value of `field` (`"VmHWM:"`, `"MemTotal:"`) in a /proc file such as
+/// `/proc/self/status` or `/proc/meminfo`; `None` where it is missing.
+pub fn proc_kb(path: &str, field: &str) -> Option<f64> {
+    std::fs::read_to_string(path)
+        .ok()?
+        .lines()
+        .find(|l| l.starts_with(field))?
+        .split_whitespace()
+        .nth(1)?
+        .parse()
+        .ok()
+}
+
 /// The process's peak resident memory (`VmHWM`) in GiB; NaN where /proc is missing.
 pub fn peak_rss_gib() -> f64 {
-    let status = std::fs::read_to_string("/proc/self/status").unwrap_or_default();
-    status
-        .lines()
-        .find(|l| l.starts_with("VmHWM:"))
-        .and_then(|l| l.split_whitespace().nth(1))
-        .and_then(|kb| kb.parse::<f64>().ok())
-        .map_or(f64::NAN, |kb| kb / (1024.0 * 1024.0))
+    proc_kb("/proc/self/status", "VmHWM:").map_or(f64::NAN, |kb| kb / (1024.0 * 1024.0))
 }
 
 /// The device memory pool's reserved bytes in GiB (GPU backends); NaN on the CPU, whose

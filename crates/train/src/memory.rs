@@ -148,9 +148,8 @@ pub fn counts(cfg: &TrainConfig) -> Counts {
     let tokens = b * seen * m.tokens_per_frame() as f64;
     let recompute = cfg.run.recompute_frozen_blocks;
     let in_layer = !backbone_stage && m.temporal_attention == TemporalPlacement::InLayer;
-    let temporal_trains = !backbone_stage
-        && m.temporal_attention != TemporalPlacement::None
-        && !frozen(FreezeGroup::TimeBlocks);
+    let temporal_exists = !backbone_stage && m.temporal_attention != TemporalPlacement::None;
+    let temporal_trains = temporal_exists && !frozen(FreezeGroup::TimeBlocks);
 
     // The first aggregator layer from which the gradient flows: 0 when the patch embedding,
     // the tokens or any frame/global block trains; after the first temporal layer when only
@@ -180,15 +179,13 @@ pub fn counts(cfg: &TrainConfig) -> Counts {
     }
     // Temporal blocks are never recomputed; they keep everything when they train or when
     // the gradient passes through them to a training backbone.
-    let temporal_exists = !backbone_stage && m.temporal_attention != TemporalPlacement::None;
     if temporal_exists && (temporal_trains || backbone_trains) {
         channels += m.temporal_layers.len() as f64 * m.embed_dim as f64;
     }
     let mut block_token_channels = tokens * channels;
     if !frozen(FreezeGroup::PatchEmbed) {
-        let dino_tokens = b * seen * (1 + m.num_register_tokens) as f64
-            + b * seen * (m.patch_grid().0 * m.patch_grid().1) as f64;
-        block_token_channels += dino_tokens * (m.dino.depth * m.dino.embed_dim) as f64;
+        // DINO sees the same tokens per frame: class, registers, patches.
+        block_token_channels += tokens * (m.dino.depth * m.dino.embed_dim) as f64;
     }
 
     let mut maps = 0.0;

@@ -6,15 +6,7 @@ use envision4d_train::memory::{StepMemory, GIB};
 
 /// This machine's memory (`MemTotal`), in bytes.
 fn host_memory_bytes() -> Option<f64> {
-    let info = std::fs::read_to_string("/proc/meminfo").ok()?;
-    let kb: f64 = info
-        .lines()
-        .find(|l| l.starts_with("MemTotal:"))?
-        .split_whitespace()
-        .nth(1)?
-        .parse()
-        .ok()?;
-    Some(kb * 1024.0)
+    envision4d_model::bench::proc_kb("/proc/meminfo", "MemTotal:").map(|kb| kb * 1024.0)
 }
 
 /// The process's peak resident memory so far, in bytes.
