@@ -8,6 +8,8 @@
 use crate::InputError;
 use burn::tensor::{Device, DeviceKind, Tensor};
 use clap::ValueEnum;
+use envision4d_model::precision::Precision;
+use envision4d_model::Envision4d;
 use std::panic::{catch_unwind, AssertUnwindSafe};
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum, Default)]
@@ -20,6 +22,38 @@ pub enum BackendChoice {
     /// CUDA on NVIDIA GPU 0 (the same CubeCL kernels; binaries built with `--features cuda`;
     /// the driver and NVRTC are loaded at run time, no toolkit needed to build).
     Cuda,
+}
+
+/// `--precision`: the float format of the aggregator at inference (the heads stay f32; see
+/// `docs/MODEL.md`, "Precision").
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum, Default)]
+pub enum PrecisionChoice {
+    /// Single precision everywhere (the default).
+    #[default]
+    F32,
+    /// Half precision in the aggregator (CUDA; wgpu where the adapter has shader-f16).
+    F16,
+    /// bfloat16 in the aggregator (CUDA; not wgpu, whose shading language has no bf16).
+    Bf16,
+}
+
+impl PrecisionChoice {
+    pub fn precision(self) -> Precision {
+        match self {
+            PrecisionChoice::F32 => Precision::F32,
+            PrecisionChoice::F16 => Precision::F16,
+            PrecisionChoice::Bf16 => Precision::Bf16,
+        }
+    }
+
+    /// `model` in this precision, once its device is known to compute in it (an input error
+    /// naming the device and the format otherwise).
+    pub fn apply(self, model: Envision4d) -> Result<Envision4d, InputError> {
+        let p = self.precision();
+        p.check(&model.device())
+            .map_err(|e| InputError(format!("--precision {}: {e}", p.name())))?;
+        Ok(model.with_precision(p))
+    }
 }
 
 /// What a machine needs for the wgpu backend.

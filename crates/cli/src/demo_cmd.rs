@@ -10,7 +10,7 @@
 
 mod print;
 
-use crate::backend_choice::BackendChoice;
+use crate::backend_choice::{BackendChoice, PrecisionChoice};
 use crate::eval_cmd::shared::{self, Provenance};
 use crate::render_cmd::{self, OutDir, OutputArgs, Plan, Request};
 use crate::report::gallery::Gallery;
@@ -65,6 +65,9 @@ pub struct DemoArgs {
     out: PathBuf,
     #[arg(long, value_enum, default_value_t = BackendChoice::Cpu)]
     backend: BackendChoice,
+    /// Float format of the aggregator (the heads stay f32).
+    #[arg(long, value_enum, default_value_t = PrecisionChoice::F32)]
+    precision: PrecisionChoice,
 }
 
 fn parse_preset(s: &str) -> Result<Preset, String> {
@@ -184,7 +187,7 @@ pub fn run(args: DemoArgs) -> Result<()> {
     bar.set_style(ProgressStyle::with_template(PROGRESS_TEMPLATE)?);
 
     bar.set_message("loading the model");
-    let model = shared::load_model(cfg, &setup.checkpoint, args.backend)?;
+    let model = shared::load_model(cfg, &setup.checkpoint, args.backend, args.precision)?;
     bar.inc(1);
 
     bar.set_message("generating the clip");

@@ -6,7 +6,7 @@ pub mod args;
 pub mod motion_images;
 pub mod shared;
 
-use crate::backend_choice::BackendChoice;
+use crate::backend_choice::{BackendChoice, PrecisionChoice};
 use crate::report::gallery::Gallery;
 use crate::InputError;
 use anyhow::{Context, Result};
@@ -51,6 +51,9 @@ pub struct EvalArgs {
     out: PathBuf,
     #[arg(long, value_enum, default_value_t = BackendChoice::Cpu)]
     backend: BackendChoice,
+    /// Float format of the aggregator (the heads stay f32); recorded in metrics.json.
+    #[arg(long, value_enum, default_value_t = PrecisionChoice::F32)]
+    precision: PrecisionChoice,
     /// Clips to score: `auto` = every clip of --data (a held-out folder), or the held-out
     /// split of the config's data.root when no --data is given.
     #[arg(long, value_enum, default_value_t = SplitChoice::Auto)]
@@ -237,7 +240,7 @@ fn bar(len: usize) -> ProgressBar {
 
 pub fn run(args: EvalArgs) -> Result<()> {
     let setup = resolve(&args)?;
-    let model = load_model(&setup.model, &args.checkpoint, args.backend)?;
+    let model = load_model(&setup.model, &args.checkpoint, args.backend, args.precision)?;
     // The dataset keeps the checkpoint's T_c + T_f windows; a shorter horizon scores fewer.
     let dataset_cfg = setup.model.clone();
     let (model, horizon_cfg) = match horizon(&args, &setup.model)? {
@@ -385,7 +388,10 @@ fn run_sweep(
             .find(|&b| backend_name(b) == s.backend)
             .context("sweep backend is one of the requested")?;
         if !models.iter().any(|(b, _)| *b == choice) {
-            models.push((choice, load_model(cfg, &args.checkpoint, choice)?));
+            models.push((
+                choice,
+                load_model(cfg, &args.checkpoint, choice, args.precision)?,
+            ));
         }
         let full = &models
             .iter()

@@ -29,16 +29,15 @@ fn read_f32(bytes: &[u8], key: &str) -> (Vec<usize>, Vec<f32>) {
     )
 }
 
-/// Guards the CLI's prediction export: with the fixture's weights and exact float input, every
-/// exported tensor equals the reference's under the fixture's key names.
-#[test]
-fn exported_predictions_match_reference() {
+/// The predictions `render --export-predictions` writes for the fixture's weights and exact
+/// float input, with `extra` arguments.
+fn export_fixture(extra: &[&str]) -> Vec<u8> {
     let fx = fixture();
     assert!(fx.is_file(), "fixture {} is required", fx.display());
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("preds.safetensors");
     let input = format!("{}:input/images", fx.display());
-    let o = render(&[
+    let mut args = vec![
         "--weights",
         fx.to_str().unwrap(),
         "--weights-prefix",
@@ -49,11 +48,17 @@ fn exported_predictions_match_reference() {
         &input,
         "--export-predictions",
         out.to_str().unwrap(),
-    ]);
+    ];
+    args.extend_from_slice(extra);
+    let o = render(&args);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let got = std::fs::read(&out).unwrap();
-    let want = std::fs::read(&fx).unwrap();
-    for key in [
+    std::fs::read(&out).unwrap()
+}
+
+/// Exported keys with the worst `|diff|` against their references and `max|ref|`.
+fn errors_against_reference(got: &[u8]) -> Vec<(&'static str, f32, f32)> {
+    let want = std::fs::read(fixture()).unwrap();
+    [
         "pose_enc",
         "depth",
         "depth_conf",
@@ -67,8 +72,10 @@ fn exported_predictions_match_reference() {
         "adapter/colors",
         "adapter/opacities",
         "adapter/motions",
-    ] {
-        let (gs, g) = read_f32(&got, key);
+    ]
+    .into_iter()
+    .map(|key| {
+        let (gs, g) = read_f32(got, key);
         let (ws, w) = read_f32(&want, &format!("expected/{key}"));
         assert_eq!(gs, ws, "{key} shape");
         let scale = w.iter().fold(0.0f32, |m, v| m.max(v.abs()));
@@ -76,12 +83,57 @@ fn exported_predictions_match_reference() {
             .iter()
             .zip(&w)
             .map(|(a, b)| (a - b).abs())
-            .fold(0.0f32, f32::max);
+            .fold(0.0f32, |m, d| if d.is_nan() { f32::NAN } else { m.max(d) });
+        (key, worst, scale)
+    })
+    .collect()
+}
+
+/// Guards the CLI's prediction export: with the fixture's weights and exact float input, every
+/// exported tensor equals the reference's under the fixture's key names.
+#[test]
+fn exported_predictions_match_reference() {
+    for (key, worst, scale) in errors_against_reference(&export_fixture(&[])) {
         assert!(
             worst <= 1e-4 * scale + 1e-5,
             "{key}: max diff {worst} (max|ref| {scale})"
         );
     }
+}
+
+/// Guards `render --precision f16` end to end: the aggregator really runs in f16 (some
+/// output moves beyond f32's error) and every export stays within 1e-2 of the reference;
+/// bf16 on wgpu, whose shading language has no bf16, is an exit-2 error naming it.
+#[test]
+fn precision_f16_exports_near_the_reference_and_bf16_on_wgpu_is_refused() {
+    let errs = errors_against_reference(&export_fixture(&["--precision", "f16"]));
+    for (key, worst, scale) in &errs {
+        assert!(
+            *worst < 1e-2 * scale,
+            "f16 {key}: max diff {worst} (max|ref| {scale})"
+        );
+    }
+    assert!(errs.iter().any(|(_, w, s)| *w > 1e-4 * s), "{errs:?}");
+    let fx = fixture();
+    let o = render(&[
+        "--weights",
+        fx.to_str().unwrap(),
+        "--weights-prefix",
+        "weights/",
+        "--model-config",
+        "tiny",
+        "--input-tensor",
+        &format!("{}:input/images", fx.display()),
+        "--export-predictions",
+        "unused.safetensors",
+        "--backend",
+        "wgpu",
+        "--precision",
+        "bf16",
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains("--precision bf16"), "{err}");
 }
 
 fn write_png(path: &Path, w: u32, h: u32, seed: u8) {

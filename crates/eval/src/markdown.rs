@@ -20,7 +20,7 @@ pub fn markdown(r: &Report) -> String {
     let _ = writeln!(
         s,
         "- checkpoint: `{}`\n- data: `{}` (split `{}`), {} clips evaluated, {} skipped\n\
-         - backend: {}; T_c = {}, T_f = {}; clips {}x{}, model input {}x{}\n\
+         - backend: {} ({}); T_c = {}, T_f = {}; clips {}x{}, model input {}x{}\n\
          - crop (top, bottom, left, right): {}, {}, {}, {}; cross-frame crop: {}, {}, {}, {}; \
          depth alignment: {}\n\
          - translation error: {} alignment, in {}\n\
@@ -31,6 +31,7 @@ pub fn markdown(r: &Report) -> String {
         r.clips_evaluated,
         r.clips_skipped,
         r.backend,
+        r.precision,
         r.context_frames,
         r.future_frames,
         r.image_size[0],

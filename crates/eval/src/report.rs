@@ -207,6 +207,11 @@ impl From<envision4d_losses::EvalCrop> for CropInfo {
     }
 }
 
+/// The precision of reports written before `precision` was recorded.
+fn full_precision() -> String {
+    "f32".into()
+}
+
 /// The whole `metrics.json`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Report {
@@ -215,6 +220,10 @@ pub struct Report {
     pub data: String,
     pub split: String,
     pub backend: String,
+    /// The aggregator's float format (`f32`, `f16`, `bf16`); reports before it existed
+    /// were f32.
+    #[serde(default = "full_precision")]
+    pub precision: String,
     pub context_frames: usize,
     pub future_frames: usize,
     /// Clip (render and metric) size `[H, W]`.

@@ -19,8 +19,9 @@ use crate::dino::Dino;
 use crate::future::NEW_BLOCK_LAYER_SCALE;
 use crate::layers::recompute;
 use crate::layers::{frame_positions, Block, BlockSpec, QkNorm, RopeTables, BLOCK_NORM_EPS};
+use crate::precision::Precision;
 use burn::module::{Module, Param};
-use burn::tensor::{Device, Distribution, Tensor, TensorData};
+use burn::tensor::{DType, Device, Distribution, Tensor, TensorData};
 
 /// ImageNet normalisation (`_resnet_mean`, `_resnet_std`).
 pub const IMAGENET_MEAN: [f32; 3] = [0.485, 0.456, 0.406];
@@ -53,6 +54,10 @@ pub struct Aggregator {
     /// parameter; see [`BlockMemory`]).
     #[module(skip)]
     pub block_memory: BlockMemory,
+    /// The float format of the aggregator's weights and activations (an inference setting;
+    /// see [`crate::precision`]). Its outputs are f32 whatever it is.
+    #[module(skip)]
+    pub precision: Precision,
 }
 
 /// What the backward keeps of a frame or global block whose parameters are frozen.
@@ -138,6 +143,7 @@ impl Aggregator {
             num_heads: cfg.num_heads,
             placement: cfg.temporal_attention,
             block_memory: BlockMemory::default(),
+            precision: Precision::default(),
         }
     }
 
@@ -172,9 +178,12 @@ impl Aggregator {
         let norm_images = normalize_images(images);
         let patch = self.patch_embed.patch_size;
         let (rows, cols) = (h / patch, w / patch);
+        // Reduced precision starts at the patch embedding and ends at the outputs (`out`).
+        let dtype = self.precision.dtype();
+        let out = |t: Tensor<4>| t.cast(DType::F32);
         let dino = self
             .patch_embed
-            .forward(norm_images.clone().reshape([b * s, 3, h, w]));
+            .forward(norm_images.clone().reshape([b * s, 3, h, w]).cast(dtype));
         let patches = dino.patch_tokens;
         let c = patches.dims()[2];
         let cam = self.special(&self.camera_token, s);
@@ -191,9 +200,10 @@ impl Aggregator {
         let device = x.device();
         let head_dim = c / self.num_heads;
         let frame_pos = frame_positions(n_special, rows, cols);
-        let rope_frame = RopeTables::new(&vec![frame_pos.clone(); b * s], head_dim, &device);
+        let rope_frame =
+            RopeTables::new(&vec![frame_pos.clone(); b * s], head_dim, &device).cast(dtype);
         let global_pos: Vec<[i64; 2]> = (0..s).flat_map(|_| frame_pos.iter().copied()).collect();
-        let rope_global = RopeTables::new(&vec![global_pos; b], head_dim, &device);
+        let rope_global = RopeTables::new(&vec![global_pos; b], head_dim, &device).cast(dtype);
 
         let placement = match temporal {
             Temporal::Apply => Some(self.placement),
@@ -218,17 +228,20 @@ impl Aggregator {
             match (placement, time_block) {
                 (Some(TemporalPlacement::InLayer), Some(t)) => {
                     let y = self.temporal_block(t, g.clone());
-                    time_list.push(Tensor::cat(vec![g.clone(), y.clone()], 3));
+                    time_list.push(out(Tensor::cat(vec![g.clone(), y.clone()], 3)));
                     x = y.reshape([b * s, p, c]);
                 }
                 (Some(TemporalPlacement::PostLayer), Some(_)) => tap_globals.push(g.clone()),
                 (Some(TemporalPlacement::None), Some(_)) => {
-                    time_list.push(Tensor::cat(vec![g.clone(), g.clone()], 3));
+                    time_list.push(out(Tensor::cat(vec![g.clone(), g.clone()], 3)));
                 }
                 _ => {}
             }
             if keep.contains(&l) {
-                layers.push((l, Tensor::cat(vec![f.reshape([b, s, p, c]), g.clone()], 3)));
+                layers.push((
+                    l,
+                    out(Tensor::cat(vec![f.reshape([b, s, p, c]), g.clone()], 3)),
+                ));
             }
             last_global = Some(g);
         }
@@ -236,7 +249,7 @@ impl Aggregator {
             let mut y = last_global.expect("the aggregator has at least one layer");
             for (t, g) in tap_globals.into_iter().enumerate() {
                 y = self.temporal_block(t, y);
-                time_list.push(Tensor::cat(vec![g, y.clone()], 3));
+                time_list.push(out(Tensor::cat(vec![g, y.clone()], 3)));
             }
         }
         AggregatorOutput {

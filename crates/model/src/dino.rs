@@ -11,7 +11,7 @@ use crate::resample::{aa_bicubic_weights, resample_separable};
 use burn::module::{Module, Param};
 use burn::nn::conv::{Conv2d, Conv2dConfig};
 use burn::nn::{LayerNorm, LayerNormConfig};
-use burn::tensor::{Device, Distribution, Tensor};
+use burn::tensor::{DType, Device, Distribution, Tensor};
 
 /// LayerScale init of DINOv2 blocks.
 pub const DINO_LAYER_SCALE: f64 = 1.0;
@@ -91,9 +91,13 @@ impl Dino {
         if rows == m && cols == m {
             return pe;
         }
+        // Resampled in f32 whatever the weights' format (bicubic weights sum partial
+        // products of opposite sign).
+        let dtype = pe.dtype();
         let cls = pe.clone().slice([0..1, 0..1, 0..c]);
         let grid = pe
             .slice([0..1, 1..n, 0..c])
+            .cast(DType::F32)
             .reshape([1, m, m, c])
             .permute([0, 3, 1, 2]);
         let resized = resample_separable(
@@ -103,7 +107,10 @@ impl Dino {
             rows,
             cols,
         );
-        let patches = resized.permute([0, 2, 3, 1]).reshape([1, rows * cols, c]);
+        let patches = resized
+            .permute([0, 2, 3, 1])
+            .reshape([1, rows * cols, c])
+            .cast(dtype);
         Tensor::cat(vec![cls, patches], 1)
     }
 

@@ -26,6 +26,7 @@ pub mod host_read;
 pub mod model;
 pub mod motion;
 pub mod pose;
+pub mod precision;
 pub mod resample;
 pub mod scene;
 pub mod seeded;

@@ -9,6 +9,7 @@ use crate::dpt::{DptHead, DptKind};
 use crate::future::{FuturePose, FutureTokens};
 use crate::motion::{displacements, motion_tokens, still_displacements};
 use crate::pose::pose_encoding_to_extri_intri;
+use crate::precision::{cast_params, Precision};
 use crate::vggt::run_depth_head;
 pub use crate::vggt::{Vggt, VggtDepth, VggtOutput};
 use burn::module::Module;
@@ -214,6 +215,20 @@ impl Envision4d {
     /// The device the parameters live on (inputs are created there).
     pub fn device(&self) -> Device {
         self.future.extra_token_offset.val().device()
+    }
+
+    /// The same network with its aggregator in `precision` (weights cast now, activations
+    /// at every forward; see [`crate::precision`]). For inference: the cast weights are the
+    /// ones a checkpoint saved from this model would hold.
+    pub fn with_precision(mut self, precision: Precision) -> Envision4d {
+        self.aggregator = cast_params(self.aggregator, precision.dtype());
+        self.aggregator.precision = precision;
+        self
+    }
+
+    /// The precision of the aggregator ([`Envision4d::with_precision`]).
+    pub fn precision(&self) -> Precision {
+        self.aggregator.precision
     }
 
     /// The same network predicting only its first `horizon` future frames (its first

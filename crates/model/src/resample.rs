@@ -80,8 +80,8 @@ pub fn resample_separable(
 ) -> Tensor<4> {
     let [n, c, h, w] = x.dims();
     let device = x.device();
-    let wr = matrix(w_rows, out_h, h, &device);
-    let wc = matrix(w_cols, out_w, w, &device);
+    let wr = matrix(w_rows, out_h, h, &device).cast(x.dtype());
+    let wc = matrix(w_cols, out_w, w, &device).cast(x.dtype());
     // Columns: [N*C*H, W] @ [W, w].
     let x = x
         .reshape([n * c * h, w])
@@ -122,7 +122,7 @@ pub fn bilinear_align_corners(x: Tensor<4>, out_h: usize, out_w: usize) -> Tenso
         return x;
     }
     let device = x.device();
-    if crate::layers::cpu_inference(&device) {
+    if crate::layers::cpu_inference(&x) {
         let host = crate::layers::host_f32(x);
         let out = bilinear_align_corners_host(&host, [n * c, h, w], [out_h, out_w]);
         return Tensor::from_data(TensorData::new(out, [n, c, out_h, out_w]), &device);

@@ -2,7 +2,7 @@
 //! setting, assembling the report, and writing `metrics.json`, `metrics.md` and the plots,
 //! so both commands produce the same files for the same numbers.
 
-use crate::backend_choice::BackendChoice;
+use crate::backend_choice::{BackendChoice, PrecisionChoice};
 use crate::plot;
 use crate::report::gallery::Gallery;
 use crate::InputError;
@@ -33,17 +33,18 @@ pub fn backend_name(b: BackendChoice) -> String {
         .map_or_else(|| format!("{b:?}"), |v| v.get_name().to_owned())
 }
 
-/// Builds the model of `cfg` and loads every parameter of our checkpoint (a missing or
-/// mis-shaped key is an input error naming the file).
+/// Builds the model of `cfg`, loads every parameter of our checkpoint (a missing or
+/// mis-shaped key is an input error naming the file) and puts it in `precision`.
 pub fn load_model(
     cfg: &ModelConfig,
     checkpoint: &Path,
     backend: BackendChoice,
+    precision: PrecisionChoice,
 ) -> Result<Envision4d> {
     let mut model = Envision4d::new(cfg, &backend.device()?);
     load_checkpoint(&mut model, checkpoint, CheckpointKind::Full)
         .map_err(|e| InputError(e.to_string()))?;
-    Ok(model)
+    Ok(precision.apply(model)?)
 }
 
 /// The LPIPS network from `weights` (or the reason it is not reported, noted on stderr).
@@ -103,6 +104,7 @@ pub fn build_report(
         data: from.data.display().to_string(),
         split: from.split,
         backend: backend_name(from.backend),
+        precision: model.precision().name().into(),
         context_frames: cfg.context_frames,
         future_frames: model.future_frames(),
         image_size: cfg.image_size,

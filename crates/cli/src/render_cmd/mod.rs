@@ -17,7 +17,7 @@ mod outputs;
 mod poses;
 mod views;
 
-use crate::backend_choice::BackendChoice;
+use crate::backend_choice::{BackendChoice, PrecisionChoice};
 use crate::InputError;
 use anyhow::{anyhow, Result};
 use burn::tensor::{Device, Tensor};
@@ -47,6 +47,9 @@ pub struct RenderArgs {
     export_predictions: Option<PathBuf>,
     #[arg(long, value_enum, default_value_t = BackendChoice::Cpu)]
     backend: BackendChoice,
+    /// Float format of the aggregator (the heads stay f32).
+    #[arg(long, value_enum, default_value_t = PrecisionChoice::F32)]
+    precision: PrecisionChoice,
 }
 
 /// What the forward pass produced: everything, or the cameras alone.
@@ -92,7 +95,9 @@ pub fn run(args: RenderArgs) -> Result<()> {
     }
     let out_dir = plan.out.as_deref().map(OutDir::create).transpose()?;
     let device = args.backend.device()?;
-    let model = input::load_model(&cfg, &source, &device)?;
+    let model = args
+        .precision
+        .apply(input::load_model(&cfg, &source, &device)?)?;
     let images = input::read_input(&args.input, &cfg, &device)?;
     let t_load = t0.elapsed();
 
@@ -116,6 +121,12 @@ pub fn run(args: RenderArgs) -> Result<()> {
         written.forward.as_secs_f64(),
         args.backend,
     )];
+    if args.precision != PrecisionChoice::F32 {
+        summary.push(format!(
+            "aggregator in {}",
+            args.precision.precision().name()
+        ));
+    }
     summary.extend(written.notes);
     bar.finish_and_clear();
     println!("{}", summary.join("; "));

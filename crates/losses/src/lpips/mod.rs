@@ -179,15 +179,24 @@ impl Lpips {
                 ),
             });
         }
-        // One backbone pass over both images halves the number of ops.
-        let feats = self.features(Tensor::cat(vec![x, y], 0));
-        let terms: Vec<Tensor<2>> = feats
+        // Without autodiff, one backbone pass over both images halves the number of ops.
+        // Under autodiff, a pass over the batch would keep the activations of both halves
+        // for the backward; two passes keep only those of the images that carry a graph (in
+        // training the renders, not the targets: half of LPIPS's activation memory).
+        let (fxs, fys) = if x.device().is_autodiff() {
+            (self.features(x), self.features(y))
+        } else {
+            let both = self.features(Tensor::cat(vec![x, y], 0));
+            let fx = both.iter().map(|f| f.clone().narrow(0, 0, n)).collect();
+            let fy = both.into_iter().map(|f| f.narrow(0, n, n)).collect();
+            (fx, fy)
+        };
+        let terms: Vec<Tensor<2>> = fxs
             .into_iter()
+            .zip(fys)
             .zip(&self.lins)
-            .map(|(f, lin)| {
-                let f = unit_normalize(f);
-                let fx = f.clone().narrow(0, 0, n);
-                let fy = f.narrow(0, n, n);
+            .map(|((fx, fy), lin)| {
+                let (fx, fy) = (unit_normalize(fx), unit_normalize(fy));
                 // 1×1 conv without bias = weighted sum over channels.
                 let d = (fx - fy).square() * lin.clone();
                 d.sum_dim(1).mean_dims(&[2, 3]).reshape([n, 1])

@@ -75,7 +75,7 @@ impl Attention {
         let device = q.device();
         // Under autodiff, the lean op: Burn's decomposed attention would keep two [B, H, N, N]
         // tensors per layer for the backward (see `lean_attention`).
-        let out = if super::cpu_inference(&device) {
+        let out = if super::cpu_inference(&q) {
             cpu_attention::attention(q, k, v)
         } else if device.is_autodiff() {
             super::lean_attention::lean_attention(q, k, v)

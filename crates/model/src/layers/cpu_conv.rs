@@ -31,7 +31,7 @@ pub fn conv2d(conv: &Conv2d, x: Tensor<4>) -> Tensor<4> {
     let same = kh == kw
         && kh % 2 == 1
         && conv.padding == PaddingConfig2d::Explicit(kh / 2, kh / 2, kh / 2, kh / 2);
-    if !super::cpu_inference(&device)
+    if !super::cpu_inference(&x)
         || !same
         || conv.stride != [1, 1]
         || conv.dilation != [1, 1]

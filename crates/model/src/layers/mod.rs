@@ -95,11 +95,15 @@ pub(crate) mod test_util {
 }
 
 /// Whether the CPU inference kernels (`cpu_attention`, `cpu_conv`, `cpu_gelu`, the bilinear
-/// resize) may run on `device`: the CPU backend *without* autodiff. They compute on host
-/// buffers, so on an autodiff device they would cut the graph. (`Device`'s equality ignores
-/// the autodiff wrapper, hence the explicit check.)
-pub fn cpu_inference(device: &burn::tensor::Device) -> bool {
-    !device.is_autodiff() && *device == burn::tensor::Device::flex()
+/// resize) may run on `x`: an f32 tensor of the CPU backend *without* autodiff. They compute
+/// on host buffers, so on an autodiff device they would cut the graph. (`Device`'s equality
+/// ignores the autodiff wrapper, hence the explicit check.) They compute in f32, so a
+/// reduced-precision aggregator takes Burn's ops instead, the same ops a GPU runs.
+pub fn cpu_inference<const D: usize>(x: &burn::tensor::Tensor<D>) -> bool {
+    let device = x.device();
+    x.dtype() == burn::tensor::DType::F32
+        && !device.is_autodiff()
+        && device == burn::tensor::Device::flex()
 }
 
 #[cfg(test)]
@@ -110,12 +114,17 @@ mod tests {
 
     /// Guards the dispatch of the CPU inference kernels: on an autodiff CPU device they must
     /// not run (they compute on host buffers and would cut the graph; `Device`'s equality
-    /// ignores the autodiff wrapper). Each dispatcher's input gets a non-zero gradient.
+    /// ignores the autodiff wrapper), nor on half tensors. Each dispatcher's input gets a
+    /// non-zero gradient.
     #[test]
     fn cpu_kernels_never_cut_an_autodiff_graph() {
         let device = Device::flex().autodiff();
-        assert!(!super::cpu_inference(&device));
-        assert!(super::cpu_inference(&Device::flex()));
+        let on = |d: &Device| Tensor::<1>::zeros([1], d);
+        assert!(!super::cpu_inference(&on(&device)));
+        assert!(super::cpu_inference(&on(&Device::flex())));
+        // A half tensor takes Burn's ops too (the kernels compute in f32).
+        let half = on(&Device::flex()).cast(burn::tensor::DType::F16);
+        assert!(!super::cpu_inference(&half));
         let x = || {
             Tensor::<4>::random([1, 4, 6, 8], Distribution::Uniform(-1.0, 1.0), &device)
                 .require_grad()

@@ -5,7 +5,7 @@
 //! `base^(-2m/d)`, angles are duplicated as `cat(a, a)`, and the rotation is the split-half
 //! ("NeoX") form `v cos + rot(v) sin` with `rot(v) = cat(-v[d/2..], v[..d/2])`.
 
-use burn::tensor::{Device, Tensor, TensorData};
+use burn::tensor::{DType, Device, Tensor, TensorData};
 
 /// RoPE frequency base of the aggregator (`rope_freq = 100`).
 pub const ROPE_BASE: f32 = 100.0;
@@ -58,6 +58,14 @@ impl RopeTables {
         RopeTables {
             cos: self.cos.clone().inner(),
             sin: self.sin.clone().inner(),
+        }
+    }
+
+    /// The tables in `dtype` (the dtype of the tokens they rotate).
+    pub fn cast(self, dtype: DType) -> Self {
+        RopeTables {
+            cos: self.cos.cast(dtype),
+            sin: self.sin.cast(dtype),
         }
     }
 
