@@ -1,7 +1,8 @@
-//! Global gradient-norm clipping (PyTorch's `clip_grad_norm_`, which STORM's loop uses):
-//! one norm over every trainable gradient, all scaled by the same factor. Burn's own
-//! `GradientClipping::Norm` clips each parameter tensor separately, which changes the
-//! update's direction; both are offered (`optim.grad_clip = "global_norm" | "norm"`).
+//! Gradient norms per module group (logged every step) and global gradient-norm clipping
+//! (PyTorch's `clip_grad_norm_`, which STORM's loop uses): one norm over every trainable
+//! gradient, all scaled by the same factor. Burn's own `GradientClipping::Norm` clips each
+//! parameter tensor separately, which changes the update's direction; both are offered
+//! (`optim.grad_clip = "global_norm" | "norm"`).
 
 use burn::module::{Module, ModuleVisitor, Param};
 use burn::optim::GradientsParams;
@@ -11,21 +12,128 @@ use envision4d_model::host_read;
 /// Added to the norm before dividing, as PyTorch does, so a zero gradient stays finite.
 const NORM_EPS: f64 = 1e-6;
 
-struct SquaredNorm<'a> {
-    grads: &'a GradientsParams,
-    acc: Option<Tensor<1>>,
+/// The parts of the network whose gradient norms the log keeps apart: the paper's trainable
+/// modules, so a run shows where the rendering loss's signal goes (the motion head's share
+/// against the Gaussian and depth heads').
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum GradGroup {
+    /// The temporal blocks inside the aggregator (`aggregator.time_blocks`).
+    TimeBlocks,
+    /// The future-pose module (`future`).
+    FuturePose,
+    CameraHead,
+    DepthHead,
+    GaussianHead,
+    MotionHead,
+    /// Everything else (the backbone, when a config trains it).
+    Other,
 }
 
-impl ModuleVisitor for SquaredNorm<'_> {
+impl GradGroup {
+    pub const ALL: [GradGroup; 7] = [
+        GradGroup::TimeBlocks,
+        GradGroup::FuturePose,
+        GradGroup::CameraHead,
+        GradGroup::DepthHead,
+        GradGroup::GaussianHead,
+        GradGroup::MotionHead,
+        GradGroup::Other,
+    ];
+
+    /// The key of the group in `log.jsonl`'s `grad_norms`.
+    pub fn name(self) -> &'static str {
+        match self {
+            GradGroup::TimeBlocks => "time_blocks",
+            GradGroup::FuturePose => "future",
+            GradGroup::CameraHead => "camera_head",
+            GradGroup::DepthHead => "depth_head",
+            GradGroup::GaussianHead => "gs_head",
+            GradGroup::MotionHead => "motion_head",
+            GradGroup::Other => "other",
+        }
+    }
+
+    /// The group of a parameter from the module path it sits under (official names).
+    fn of(path: &[String]) -> GradGroup {
+        match (
+            path.first().map(String::as_str),
+            path.get(1).map(String::as_str),
+        ) {
+            (Some("aggregator"), Some("time_blocks")) => GradGroup::TimeBlocks,
+            (Some("future"), _) => GradGroup::FuturePose,
+            (Some("camera_head"), _) => GradGroup::CameraHead,
+            (Some("depth_head"), _) => GradGroup::DepthHead,
+            (Some("gs_head"), _) => GradGroup::GaussianHead,
+            (Some("motion_head"), _) => GradGroup::MotionHead,
+            _ => GradGroup::Other,
+        }
+    }
+}
+
+/// The number of [`GradGroup`]s.
+const GROUPS: usize = GradGroup::ALL.len();
+
+/// L2 norms of one step's gradients, per [`GradGroup`] (in [`GradGroup::ALL`]'s order;
+/// `None` for a group without any gradient) and over all of them.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GradNorms {
+    pub groups: [Option<f64>; GROUPS],
+    pub total: f64,
+}
+
+struct SquaredNorms<'a> {
+    grads: &'a GradientsParams,
+    path: Vec<String>,
+    acc: [Option<Tensor<1>>; GROUPS],
+}
+
+impl ModuleVisitor for SquaredNorms<'_> {
+    fn enter_module(&mut self, name: &str, _container_type: &str) {
+        self.path.push(name.to_owned());
+    }
+
+    fn exit_module(&mut self, _name: &str, _container_type: &str) {
+        self.path.pop();
+    }
+
     fn visit_float<const D: usize>(&mut self, p: &Param<Tensor<D>>) {
         if let Some(g) = self.grads.get::<D>(p.id) {
             let s = g.powf_scalar(2.0).sum();
-            self.acc = Some(match self.acc.take() {
+            let slot = GradGroup::ALL
+                .iter()
+                .position(|&k| k == GradGroup::of(&self.path))
+                .unwrap_or(GradGroup::ALL.len() - 1);
+            self.acc[slot] = Some(match self.acc[slot].take() {
                 None => s,
                 Some(a) => a + s,
             });
         }
     }
+}
+
+/// The gradient norms of `module`'s parameters in `grads`, in one host read (`None` when
+/// there is no gradient).
+pub fn grad_norms<M: Module>(module: &M, grads: &GradientsParams) -> Option<GradNorms> {
+    let mut sq = SquaredNorms {
+        grads,
+        path: Vec::new(),
+        acc: Default::default(),
+    };
+    module.visit(&mut sq);
+    let present: Vec<usize> = (0..sq.acc.len()).filter(|&i| sq.acc[i].is_some()).collect();
+    let parts: Vec<Tensor<1>> = sq.acc.into_iter().flatten().collect();
+    if parts.is_empty() {
+        return None;
+    }
+    let squares = host_read::read_all(parts);
+    let mut groups = [None; GROUPS];
+    for (&slot, s) in present.iter().zip(&squares) {
+        groups[slot] = Some(s.sqrt());
+    }
+    Some(GradNorms {
+        groups,
+        total: squares.iter().sum::<f64>().sqrt(),
+    })
 }
 
 struct Scale<'a> {
@@ -41,19 +149,16 @@ impl ModuleVisitor for Scale<'_> {
     }
 }
 
-/// Scales `grads` so their global L2 norm is at most `max_norm`; returns the norm before
-/// clipping (`None` when there is no gradient).
+/// Scales `grads`, whose global L2 norm is `norm` ([`grad_norms`]), so that it is at most
+/// `max_norm`.
 pub fn clip_global_norm<M: Module>(
     module: &M,
     grads: &mut GradientsParams,
+    norm: f64,
     max_norm: f64,
-) -> Option<f64> {
-    let mut sq = SquaredNorm { grads, acc: None };
-    module.visit(&mut sq);
-    let norm = host_read::read(sq.acc?).iter::<f64>().next()?.sqrt();
+) {
     let factor = max_norm / (norm + NORM_EPS);
     if factor < 1.0 {
         module.visit(&mut Scale { grads, factor });
     }
-    Some(norm)
 }

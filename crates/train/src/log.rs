@@ -2,6 +2,7 @@
 //! resume, records at or after the resumed step are dropped so the log continues exactly.
 
 use crate::error::{read, written, Result, TrainError};
+use crate::grad_clip::GradGroup;
 use crate::step::{StepOutcome, StepReport};
 use crate::validate::ValReport;
 use serde_json::{json, Value};
@@ -81,6 +82,15 @@ impl JsonlLog {
             "camera": num(r.camera),
             "depth": num(r.depth),
             "psnr": r.psnr.map_or(Value::Null, num),
+            "grad_norm": r.grad_norms.map_or(Value::Null, |g| num(g.total)),
+            "grad_norms": r.grad_norms.map_or(Value::Null, |g| {
+                GradGroup::ALL
+                    .iter()
+                    .zip(g.groups)
+                    .filter_map(|(k, n)| Some((k.name().to_owned(), num(n?))))
+                    .collect::<serde_json::Map<_, _>>()
+                    .into()
+            }),
             "lr": r.lr,
             "phase": format!("{:?}", r.phase).to_lowercase(),
             "outcome": outcome,

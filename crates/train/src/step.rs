@@ -10,7 +10,7 @@ use crate::config::{ClipMode, Init, Stage, Teacher, TrainConfig};
 use crate::distill::{labels, DistillLoss, FrozenTeacher};
 use crate::error::{Result, TrainError};
 use crate::freeze::{detach_frozen, grads_finite, params_finite, ParamSplit};
-use crate::grad_clip::clip_global_norm;
+use crate::grad_clip::{clip_global_norm, grad_norms, GradNorms};
 pub use crate::init::{build_model, identity_pose_init, INITIAL_FOV_RAD, POSE_OUTPUT_INIT_SCALE};
 use crate::schedule::{Phase, PhasePlan, Schedule};
 use burn::grad_clipping::GradientClippingConfig;
@@ -78,6 +78,8 @@ pub struct StepReport {
     pub depth: f64,
     /// PSNR (dB) of the step's renders from their unweighted MSE (envision4d stage).
     pub psnr: Option<f64>,
+    /// The gradient norms before clipping, per module group (an applied step's).
+    pub grad_norms: Option<GradNorms>,
     pub lr: f64,
     pub phase: Phase,
     pub outcome: StepOutcome,
@@ -93,6 +95,7 @@ impl StepReport {
             camera: f64::NAN,
             depth: f64::NAN,
             psnr: None,
+            grad_norms: None,
             lr,
             phase,
             outcome,
@@ -374,6 +377,7 @@ impl Trainer {
             camera: v.camera,
             depth: v.depth,
             psnr: v.mse.map(psnr_from_mse),
+            grad_norms: None,
             lr,
             phase: terms.phase,
             outcome,
@@ -392,18 +396,28 @@ impl Trainer {
         }
         // Frozen parameters get no gradient entry, so Adam leaves them untouched.
         let gp = GradientsParams::from_params(&mut grads, &self.model, &self.split.trainable);
-        let outcome = self.apply(lr, gp);
-        Ok(report(outcome))
+        let (outcome, norms) = self.apply(lr, gp);
+        Ok(StepReport {
+            grad_norms: norms,
+            ..report(outcome)
+        })
     }
 
-    /// Clips (global norm, when configured) and applies `grads`; an update that leaves any
-    /// parameter non-finite is rolled back (model and Adam state) and counted as skipped, so
-    /// a checkpoint never holds exploded weights.
-    pub(crate) fn apply(&mut self, lr: f64, mut grads: GradientsParams) -> StepOutcome {
-        if self.config.optim.grad_clip == ClipMode::GlobalNorm {
+    /// Measures (the gradient norms, before clipping, returned for the log), clips (global
+    /// norm, when configured) and applies `grads`; an update that leaves any parameter
+    /// non-finite is rolled back (model and Adam state) and counted as skipped, so a
+    /// checkpoint never holds exploded weights.
+    pub(crate) fn apply(
+        &mut self,
+        lr: f64,
+        mut grads: GradientsParams,
+    ) -> (StepOutcome, Option<GradNorms>) {
+        let norms = grad_norms(&self.model, &grads);
+        if let (ClipMode::GlobalNorm, Some(n)) = (self.config.optim.grad_clip, norms) {
             clip_global_norm(
                 &self.model,
                 &mut grads,
+                n.total,
                 self.config.optim.grad_clip_threshold,
             );
         }
@@ -414,10 +428,10 @@ impl Trainer {
             self.optim = optim;
             self.skipped += 1;
             self.consecutive_nonfinite += 1;
-            return StepOutcome::SkippedNonFiniteUpdate;
+            return (StepOutcome::SkippedNonFiniteUpdate, norms);
         }
         self.consecutive_nonfinite = 0;
-        StepOutcome::Applied
+        (StepOutcome::Applied, norms)
     }
 }
 

@@ -122,6 +122,7 @@ impl Trainer {
                 camera: mean(|v| v.camera),
                 depth: mean(|v| v.depth),
                 psnr,
+                grad_norms: None,
                 lr: self.schedule.learning_rate(step),
                 phase: self.schedule.phase(step),
                 outcome: StepOutcome::Applied,
@@ -154,7 +155,7 @@ impl Trainer {
                 ))
             }
             ParallelGradients::Ready { grads, mut report } => {
-                report.outcome = self.apply(lr, grads);
+                (report.outcome, report.grad_norms) = self.apply(lr, grads);
                 Ok(report)
             }
         }

@@ -5,6 +5,7 @@ mod checkpointing;
 mod common;
 mod config;
 mod eval;
+mod grad_norms;
 mod memory;
 mod pose;
 mod run;
