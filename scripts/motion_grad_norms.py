@@ -1,7 +1,7 @@
-"""Summarises the per-module gradient norms of a training log (log.jsonl `grad_norms`,
-before clipping) by phase: the median of each module's norm, and its median share of the
-total, over the logged steps of the warm-up, the first and second half of the progressive
-phase. Pure Python (no numpy).
+"""Summarises the per-module gradient norms of a training log (log.jsonl `grad_norms` and
+`grad_rms`, before clipping) by phase: the median of each module's norm, its median share
+of the total, and the median root mean square of its elements, over the logged steps of the
+warm-up, the first and second half of the progressive phase. Pure Python (no numpy).
 
     python3 scripts/motion_grad_norms.py runs/motion-grad-norms/log.jsonl
 """
@@ -39,7 +39,19 @@ def main(path):
         total = statistics.median(s["grad_norm"] for s in rows)
         span = f"{rows[0]['step']}-{rows[-1]['step']}"
         print(f"| {name} | {span} | {total:.3g} | " + " | ".join(cells) + " |")
-    print("\n(share: a module's norm / the total norm, median over steps)")
+    print("\n(share: a module's norm / the total norm, median over steps)\n")
+    print("Root mean square of a gradient element (`grad_rms`), median over logged steps; "
+          "Adam's epsilon is the config's `optim.adam_epsilon`\n")
+    print("| phase | " + " | ".join(groups) + " |")
+    print("|---|" + "---|" * len(groups))
+    for name, rows in phases:
+        if not rows:
+            continue
+        cells = []
+        for g in groups:
+            vals = [s["grad_rms"][g] for s in rows if g in s.get("grad_rms", {})]
+            cells.append(f"{statistics.median(vals):.2g}" if vals else "-")
+        print(f"| {name} | " + " | ".join(cells) + " |")
 
 
 if __name__ == "__main__":

@@ -78,13 +78,24 @@ const GROUPS: usize = GradGroup::ALL.len();
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GradNorms {
     pub groups: [Option<f64>; GROUPS],
+    /// Gradient elements per group.
+    pub elements: [usize; GROUPS],
     pub total: f64,
+}
+
+impl GradNorms {
+    /// The root mean square of a group's gradient elements (`norm / sqrt(elements)`), the
+    /// scale Adam's ε is compared with.
+    pub fn rms(&self, slot: usize) -> Option<f64> {
+        Some(self.groups[slot]? / (self.elements[slot].max(1) as f64).sqrt())
+    }
 }
 
 struct SquaredNorms<'a> {
     grads: &'a GradientsParams,
     path: Vec<String>,
     acc: [Option<Tensor<1>>; GROUPS],
+    elements: [usize; GROUPS],
 }
 
 impl ModuleVisitor for SquaredNorms<'_> {
@@ -98,11 +109,13 @@ impl ModuleVisitor for SquaredNorms<'_> {
 
     fn visit_float<const D: usize>(&mut self, p: &Param<Tensor<D>>) {
         if let Some(g) = self.grads.get::<D>(p.id) {
+            let elements = g.shape().num_elements();
             let s = g.powf_scalar(2.0).sum();
             let slot = GradGroup::ALL
                 .iter()
                 .position(|&k| k == GradGroup::of(&self.path))
                 .unwrap_or(GradGroup::ALL.len() - 1);
+            self.elements[slot] += elements;
             self.acc[slot] = Some(match self.acc[slot].take() {
                 None => s,
                 Some(a) => a + s,
@@ -118,6 +131,7 @@ pub fn grad_norms<M: Module>(module: &M, grads: &GradientsParams) -> Option<Grad
         grads,
         path: Vec::new(),
         acc: Default::default(),
+        elements: [0; GROUPS],
     };
     module.visit(&mut sq);
     let present: Vec<usize> = (0..sq.acc.len()).filter(|&i| sq.acc[i].is_some()).collect();
@@ -132,6 +146,7 @@ pub fn grad_norms<M: Module>(module: &M, grads: &GradientsParams) -> Option<Grad
     }
     Some(GradNorms {
         groups,
+        elements: sq.elements,
         total: squares.iter().sum::<f64>().sqrt(),
     })
 }

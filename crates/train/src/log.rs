@@ -91,6 +91,14 @@ impl JsonlLog {
                     .collect::<serde_json::Map<_, _>>()
                     .into()
             }),
+            "grad_rms": r.grad_norms.map_or(Value::Null, |g| {
+                GradGroup::ALL
+                    .iter()
+                    .enumerate()
+                    .filter_map(|(i, k)| Some((k.name().to_owned(), num(g.rms(i)?))))
+                    .collect::<serde_json::Map<_, _>>()
+                    .into()
+            }),
             "lr": r.lr,
             "phase": format!("{:?}", r.phase).to_lowercase(),
             "outcome": outcome,

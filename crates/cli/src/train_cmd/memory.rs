@@ -4,9 +4,36 @@
 use crate::backend_choice::BackendChoice;
 use envision4d_train::memory::{StepMemory, GIB};
 
-/// This machine's memory (`MemTotal`), in bytes.
-fn host_memory_bytes() -> Option<f64> {
-    envision4d_model::bench::proc_kb("/proc/meminfo", "MemTotal:").map(|kb| kb * 1024.0)
+/// The memory limit files of cgroup v2 and v1: a container's share of the machine.
+const CGROUP_LIMITS: [&str; 2] = [
+    "/sys/fs/cgroup/memory.max",
+    "/sys/fs/cgroup/memory/memory.limit_in_bytes",
+];
+
+/// The memory this process may use, in bytes, and where the figure comes from: the machine's
+/// `MemTotal`, or a container's cgroup limit where that is lower (inside a container
+/// `MemTotal` is the host's, and the limit is what the OOM killer enforces).
+fn host_memory_bytes() -> Option<(f64, &'static str)> {
+    let total = envision4d_model::bench::proc_kb("/proc/meminfo", "MemTotal:")? * 1024.0;
+    let limits = CGROUP_LIMITS.map(|p| std::fs::read_to_string(p).ok());
+    Some(lower_limit(total, &limits))
+}
+
+/// `total` or the lowest numeric limit among `cgroup` file contents (`max`, absent or
+/// unparsable entries are no limit; v1 writes a huge number for none).
+fn lower_limit(total: f64, cgroup: &[Option<String>]) -> (f64, &'static str) {
+    cgroup
+        .iter()
+        .flatten()
+        .filter_map(|t| t.trim().parse::<f64>().ok())
+        .filter(|&l| l < total)
+        .fold((total, "MemTotal"), |(best, from), l| {
+            if l < best {
+                (l, "cgroup limit")
+            } else {
+                (best, from)
+            }
+        })
 }
 
 /// The process's peak resident memory so far, in bytes.
@@ -42,14 +69,17 @@ pub fn describe_estimate(m: &StepMemory, backend: BackendChoice) -> String {
         g(m.runtime),
     );
     if backend == BackendChoice::Cpu
-        && let Some(total) = host_memory_bytes()
+        && let Some((total, from)) = host_memory_bytes()
     {
         let verdict = if m.later_steps() <= total {
             "fits"
         } else {
             "does NOT fit"
         };
-        out.push_str(&format!("\n  this machine has {} GiB: {verdict}", g(total)));
+        out.push_str(&format!(
+            "\n  this machine has {} GiB ({from}): {verdict}",
+            g(total)
+        ));
     }
     out.push_str(&format!(
         "\n  on a GPU: about {} GiB of device memory (the same tensors without the host \
@@ -67,4 +97,26 @@ pub fn describe_peak(estimated_bytes: f64) -> Option<String> {
         peak / GIB,
         estimated_bytes / GIB
     ))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::lower_limit;
+
+    /// Guards the dry run's verdict inside a container: a cgroup limit below `MemTotal` is
+    /// the memory that counts; `max` (v2) and v1's huge "no limit" number are not limits.
+    #[test]
+    fn a_cgroup_limit_below_memtotal_wins() {
+        let total = 24e9;
+        let s = |t: &str| Some(t.to_owned());
+        assert_eq!(lower_limit(total, &[s("max\n"), None]), (total, "MemTotal"));
+        assert_eq!(
+            lower_limit(total, &[None, s("9223372036854771712\n")]),
+            (total, "MemTotal")
+        );
+        assert_eq!(
+            lower_limit(total, &[s("8589934592\n"), s("garbage")]),
+            (8589934592.0, "cgroup limit")
+        );
+    }
 }

@@ -50,6 +50,12 @@ fn gradient_norms_are_grouped_by_module() {
             (g, w) => assert_eq!(g, w, "{}", group.name()),
         }
     }
+    let slot = |g: GradGroup| GradGroup::ALL.iter().position(|&k| k == g).unwrap();
+    let rms = norms.rms(slot(GradGroup::TimeBlocks)).unwrap();
+    assert!(
+        (rms - 2.0).abs() < 1e-4,
+        "time blocks' gradient rms {rms}, every element 2"
+    );
     let total = (n_motion + 4.0 * n_time).sqrt();
     assert!(
         (norms.total - total).abs() < 1e-4 * total,

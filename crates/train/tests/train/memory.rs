@@ -59,4 +59,10 @@ fn memory_counts_of_the_paper_config() {
     assert_eq!(kept.recomputed_token_channels, 0.0);
     c.loss.lambda_lpips = 0.0;
     assert_eq!(envision4d_train::memory::counts(&c).lpips_pixels, 0.0);
+    // Global blocks trainable, frame blocks frozen: frame block 0 runs before anything that
+    // trains, so 23 frame + 24 global + 4 temporal blocks keep their activations.
+    c.freeze
+        .retain(|g| *g != envision4d_train::config::FreezeGroup::GlobalBlocks);
+    let global = envision4d_train::memory::counts(&c);
+    assert_eq!(global.block_token_channels, tokens * 51.0 * 1024.0);
 }
