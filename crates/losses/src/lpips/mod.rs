@@ -179,7 +179,7 @@ impl Lpips {
                 ),
             });
         }
-        // Without autodiff, one backbone pass over both images halves the number of ops.
+        // Without autodiff, one backbone pass over both images halves the op launches.
         // Under autodiff, a pass over the batch would keep the activations of both halves
         // for the backward; two passes keep only those of the images that carry a graph (in
         // training the renders, not the targets: half of LPIPS's activation memory).
