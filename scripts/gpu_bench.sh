@@ -9,10 +9,12 @@
 #   RASTER_BIN=path FORWARD_BIN=path STEP_BIN=path scripts/gpu_bench.sh   # prebuilt benches
 #   MODEL_PRESET=tiny MODEL_IMAGE=56x84 scripts/gpu_bench.sh  # a small model (lavapipe)
 #   MODEL_MODES=forward scripts/gpu_bench.sh      # no training step
+#   PRECISIONS=f32 scripts/gpu_bench.sh           # the forward in f32 only (default f32 f16 bf16)
 #   SKIP_MODEL=1 scripts/gpu_bench.sh             # the rasterizer only
 #
 # The model part runs on each GPU backend: crates/model/benches/forward.rs for the paper-size
-# forward (VGGT-1B widths, 2 context frames at 350x518, random weights), and
+# forward (VGGT-1B widths, 2 context frames at 350x518, random weights; the aggregator in
+# each of PRECISIONS), and
 # crates/train/benches/train_step.rs for one real training step of configs/waymo.toml
 # (batch 1 x 4 frames at 350x518, the paper's freeze list and losses, init = "random").
 # Memory: the host's peak RSS, and the device pool's reserved bytes after the pass.
@@ -33,6 +35,9 @@ fi
 MODEL_PRESET=${MODEL_PRESET:-paper}
 MODEL_IMAGE=${MODEL_IMAGE:-350x518}
 MODEL_MODES=${MODEL_MODES:-forward train}
+# The aggregator's float formats the forward runs in (`--precision`; a device without one
+# gets a NaN row: wgpu has no bf16).
+PRECISIONS=${PRECISIONS:-f32 f16 bf16}
 mkdir -p "$OUT"
 export XDG_RUNTIME_DIR="${XDG_RUNTIME_DIR:-$(mktemp -d)}"
 # A bench binary: the given path, or built here (its path ends cargo's "Executable" line).
@@ -62,20 +67,31 @@ if [ -z "${SKIP_MODEL:-}" ]; then
     echo "| backend | model | mode | seconds | host peak RSS GiB | device reserved GiB |"
     echo "|---|---|---|---|---|---|"
   } >> "$OUT/model.md.tmp"
+  # One table row from a bench's `*_s=... peak_rss_gib=... device_reserved_gib=...` line
+  # (NaN where the device lacks a precision).
+  row() {
+    local secs rss dev
+    secs=$(echo "$3" | sed -n 's/.*_s=\([0-9.NaN]*\).*/\1/p')
+    rss=$(echo "$3" | sed -n 's/.*peak_rss_gib=\([0-9.NaN]*\).*/\1/p')
+    dev=$(echo "$3" | sed -n 's/.*device_reserved_gib=\([0-9.a-zA-Z]*\).*/\1/p')
+    echo "| $1 | $MODEL_PRESET, $MODEL_IMAGE | $2 | $secs | $rss | $dev |" >> "$OUT/model.md.tmp"
+  }
   for b in ${BACKENDS//,/ }; do
     for mode in $MODEL_MODES; do
       echo "== model $MODEL_PRESET at $MODEL_IMAGE, $mode, $b"
       if [ "$mode" = train ]; then
         line=$("$STEP" --config configs/waymo.toml --preset "$MODEL_PRESET" --image "$MODEL_IMAGE" \
           --batch 1 --device "$b" --repeats 1 | tee -a /dev/stderr | grep -E '^train_step_s=' | tail -1)
+        row "$b" "$mode" "$line"
       else
-        line=$("$FWD" --preset "$MODEL_PRESET" --image "$MODEL_IMAGE" --device "$b" --mode "$mode" \
-          --repeats 1 | tee -a /dev/stderr | grep -E '^forward_warm_s=' | tail -1)
+        for p in $PRECISIONS; do
+          echo "== model $MODEL_PRESET at $MODEL_IMAGE, forward, aggregator in $p, $b"
+          line=$("$FWD" --preset "$MODEL_PRESET" --image "$MODEL_IMAGE" --device "$b" \
+            --mode "$mode" --precision "$p" --repeats 1 | tee -a /dev/stderr |
+            grep -E '^forward_warm_s=' | tail -1)
+          row "$b" "$mode ($p)" "$line"
+        done
       fi
-      secs=$(echo "$line" | sed -n 's/.*_s=\([0-9.]*\).*/\1/p')
-      rss=$(echo "$line" | sed -n 's/.*peak_rss_gib=\([0-9.]*\).*/\1/p')
-      dev=$(echo "$line" | sed -n 's/.*device_reserved_gib=\([0-9.a-zA-Z]*\).*/\1/p')
-      echo "| $b | $MODEL_PRESET, $MODEL_IMAGE | $mode | $secs | $rss | $dev |" >> "$OUT/model.md.tmp"
     done
   done
 fi

@@ -23,21 +23,26 @@ def main(path):
         ("progressive, 2nd half", [s for s in prog if s["step"] >= half]),
     ]
     groups = sorted({k for s in steps for k in s["grad_norms"]})
+    phases = [(name, rows) for name, rows in phases if rows]
+
+    def norm_cell(rows, g):
+        vals = [s["grad_norms"][g] for s in rows if g in s["grad_norms"]]
+        shares = [s["grad_norms"][g] / s["grad_norm"] for s in rows
+                  if g in s["grad_norms"] and s["grad_norm"]]
+        return (f"{statistics.median(vals):.3g} ({100 * statistics.median(shares):.0f}%)"
+                if vals else "-")
+
+    def rms_cell(rows, g):
+        vals = [s["grad_rms"][g] for s in rows if g in s.get("grad_rms", {})]
+        return f"{statistics.median(vals):.2g}" if vals else "-"
+
     print(f"Gradient norms before clipping, median over logged steps ({path})\n")
     print("| phase | steps | total | " + " | ".join(groups) + " |")
     print("|---|---|---|" + "---|" * len(groups))
     for name, rows in phases:
-        if not rows:
-            continue
-        cells = []
-        for g in groups:
-            vals = [s["grad_norms"][g] for s in rows if g in s["grad_norms"]]
-            shares = [s["grad_norms"][g] / s["grad_norm"] for s in rows
-                      if g in s["grad_norms"] and s["grad_norm"]]
-            cells.append(f"{statistics.median(vals):.3g} ({100 * statistics.median(shares):.0f}%)"
-                         if vals else "-")
         total = statistics.median(s["grad_norm"] for s in rows)
         span = f"{rows[0]['step']}-{rows[-1]['step']}"
+        cells = [norm_cell(rows, g) for g in groups]
         print(f"| {name} | {span} | {total:.3g} | " + " | ".join(cells) + " |")
     print("\n(share: a module's norm / the total norm, median over steps)\n")
     print("Root mean square of a gradient element (`grad_rms`), median over logged steps; "
@@ -45,14 +50,7 @@ def main(path):
     print("| phase | " + " | ".join(groups) + " |")
     print("|---|" + "---|" * len(groups))
     for name, rows in phases:
-        if not rows:
-            continue
-        cells = []
-        for g in groups:
-            vals = [s["grad_rms"][g] for s in rows if g in s.get("grad_rms", {})]
-            cells.append(f"{statistics.median(vals):.2g}" if vals else "-")
-        print(f"| {name} | " + " | ".join(cells) + " |")
-
+        print(f"| {name} | " + " | ".join(rms_cell(rows, g) for g in groups) + " |")
 
 if __name__ == "__main__":
     main(sys.argv[1])

@@ -15,7 +15,7 @@ cd "$(dirname "$0")/.."
 OUT=${1:-runs/motion-grad-norms}
 BIN=${ENVISION4D:-${CARGO_TARGET_DIR:-$HOME/.cache/envision4d-target}/release/envision4d}
 DATA=data/motion-56x84
-PRESETS="constant accelerating turning crossing stop-and-go"
+PRESETS="motion-constant motion-accelerating motion-turning motion-crossing motion-stop-and-go"
 [ -d "$DATA/motion-train" ] || {
   echo "no $DATA/motion-train: run scripts/motion_bench.sh BASE=shipped first" >&2
   exit 2

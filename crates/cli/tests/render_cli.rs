@@ -29,13 +29,11 @@ fn read_f32(bytes: &[u8], key: &str) -> (Vec<usize>, Vec<f32>) {
     )
 }
 
-/// The predictions `render --export-predictions` writes for the fixture's weights and exact
-/// float input, with `extra` arguments.
-fn export_fixture(extra: &[&str]) -> Vec<u8> {
+/// `render` of the fixture's weights and exact float input into `out`, with `extra`
+/// arguments.
+fn render_fixture(out: &Path, extra: &[&str]) -> Output {
     let fx = fixture();
     assert!(fx.is_file(), "fixture {} is required", fx.display());
-    let dir = tempfile::tempdir().unwrap();
-    let out = dir.path().join("preds.safetensors");
     let input = format!("{}:input/images", fx.display());
     let mut args = vec![
         "--weights",
@@ -50,7 +48,15 @@ fn export_fixture(extra: &[&str]) -> Vec<u8> {
         out.to_str().unwrap(),
     ];
     args.extend_from_slice(extra);
-    let o = render(&args);
+    render(&args)
+}
+
+/// The predictions `render --export-predictions` writes for the fixture, with `extra`
+/// arguments.
+fn export_fixture(extra: &[&str]) -> Vec<u8> {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("preds.safetensors");
+    let o = render_fixture(&out, extra);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     std::fs::read(&out).unwrap()
 }
@@ -114,23 +120,9 @@ fn precision_f16_exports_near_the_reference_and_bf16_on_wgpu_is_refused() {
         );
     }
     assert!(errs.iter().any(|(_, w, s)| *w > 1e-4 * s), "{errs:?}");
-    let fx = fixture();
-    let o = render(&[
-        "--weights",
-        fx.to_str().unwrap(),
-        "--weights-prefix",
-        "weights/",
-        "--model-config",
-        "tiny",
-        "--input-tensor",
-        &format!("{}:input/images", fx.display()),
-        "--export-predictions",
-        "unused.safetensors",
-        "--backend",
-        "wgpu",
-        "--precision",
-        "bf16",
-    ]);
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("unused.safetensors");
+    let o = render_fixture(&out, &["--backend", "wgpu", "--precision", "bf16"]);
     let err = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(2), "{err}");
     assert!(err.contains("--precision bf16"), "{err}");

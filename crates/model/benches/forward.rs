@@ -5,7 +5,7 @@
 //! cargo bench -p envision4d-model --bench forward -- [--preset paper|tiny]
 //!     [--mode forward|train] [--heads all|none|depth|gaussians|motion] [--image HxW]
 //!     [--future N] [--images FILE.safetensors] [--repeats N] [--chunk N] [--profile]
-//!     [--device cpu|wgpu|cuda]
+//!     [--device cpu|wgpu|cuda] [--precision f32|f16|bf16]
 //! ```
 //!
 //! The peak RSS is the host process's; on a GPU `device_reserved_gib` is the device memory
@@ -25,6 +25,7 @@ use burn::module::{Module, ModuleVisitor, Param};
 use burn::tensor::{Device, Distribution, Tensor, TensorData};
 use envision4d_model::bench::{arg, device_reserved_gib, peak_rss_gib};
 use envision4d_model::model::{Heads, Predictions};
+use envision4d_model::precision::Precision;
 use envision4d_model::{Envision4d, ModelConfig};
 use std::time::Instant;
 
@@ -138,8 +139,25 @@ fn main() {
     cfg.image_size = [h, w];
     cfg.validate().expect("valid config");
 
+    // `--precision`: the aggregator's float format (forward mode; training stays f32). A
+    // device without it prints a NaN row, so a benchmark table records the gap.
+    let precision = match arg(&args, "--precision").as_deref() {
+        None | Some("f32") => Precision::F32,
+        Some("f16") => Precision::F16,
+        Some("bf16") => Precision::Bf16,
+        Some(p) => panic!("--precision {p}: use f32, f16 or bf16"),
+    };
+    assert!(
+        !(train && precision != Precision::F32),
+        "--precision applies to --mode forward"
+    );
+    if let Err(e) = precision.check(&device) {
+        println!("# {e}");
+        println!("forward_warm_s=NaN peak_rss_gib=NaN device_reserved_gib=NaN");
+        return;
+    }
     let t = Instant::now();
-    let mut model = Envision4d::new(&cfg, &device);
+    let mut model = Envision4d::new(&cfg, &device).with_precision(precision);
     if let Some(c) = arg(&args, "--chunk") {
         model.dpt_frame_chunk = c.parse().expect("--chunk N");
     }
@@ -147,11 +165,12 @@ fn main() {
     let t_init = t.elapsed().as_secs_f64();
     println!(
         "# envision4d {preset}, {:.3} B params, images [{b}, {tc}, 3, {h}, {w}], {} future, \
-         {} mode, weights drawn in {t_init:.1} s, allocator kept freed memory: {tuned}, \
+         {} mode, aggregator in {}, weights drawn in {t_init:.1} s, allocator kept freed memory: {tuned}, \
          CPU kernels: {:?}",
         model.num_params() as f64 / 1e9,
         cfg.future_frames,
         if train { "train" } else { "forward" },
+        precision.name(),
         envision4d_model::layers::cpu_attention::Isa::detect(),
     );
     let label = if train {
