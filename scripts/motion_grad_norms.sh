@@ -58,6 +58,8 @@ for name in ["eps-1e-5", "eps-1e-8"]:
     cells = []
     for p in presets:
         m = json.load(open(f"{out}/{name}/eval-{p}/metrics.json"))["mean"]
-        cells.append(f"{m['motion']['rel_epe_dynamic']:.3f} / {m['methods'][0]['psnr']:.2f}")
+        epe = (m.get("motion") or {}).get("rel_epe_dynamic")
+        epe = "-" if epe is None else f"{epe:.3f}"
+        cells.append(f"{epe} / {m['methods'][0]['psnr']:.2f}")
     print(f"| {name} | " + " | ".join(cells) + " |")
 PY

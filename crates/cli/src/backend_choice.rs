@@ -46,13 +46,18 @@ impl PrecisionChoice {
         }
     }
 
-    /// `model` in this precision, once its device is known to compute in it (an input error
-    /// naming the device and the format otherwise).
-    pub fn apply(self, model: Envision4d) -> Result<Envision4d, InputError> {
+    /// Whether `device` computes in this precision: an input error naming the device and
+    /// the format otherwise (checked before a checkpoint is read).
+    pub fn check(self, device: &Device) -> Result<(), InputError> {
         let p = self.precision();
-        p.check(&model.device())
-            .map_err(|e| InputError(format!("--precision {}: {e}", p.name())))?;
-        Ok(model.with_precision(p))
+        p.check(device)
+            .map_err(|e| InputError(format!("--precision {}: {e}", p.name())))
+    }
+
+    /// `model` in this precision, once its device is known to compute in it.
+    pub fn apply(self, model: Envision4d) -> Result<Envision4d, InputError> {
+        self.check(&model.device())?;
+        Ok(model.with_precision(self.precision()))
     }
 }
 

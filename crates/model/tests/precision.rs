@@ -112,8 +112,9 @@ fn layer_norm_of_large_f16_tokens_is_finite() {
     );
 }
 
-/// Guards the device check of `--precision`: f32 runs anywhere, and a device that lacks a
-/// format is refused with its name before any weight is cast.
+/// Guards the device check of `--precision`: f32 runs anywhere, the check agrees with the
+/// device's own dtype support, and a refusal names the format (the CLI test checks the
+/// refusal of bf16 on wgpu end to end).
 #[test]
 fn the_check_names_what_a_device_lacks() {
     let device = Device::flex();

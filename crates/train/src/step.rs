@@ -78,7 +78,8 @@ pub struct StepReport {
     pub depth: f64,
     /// PSNR (dB) of the step's renders from their unweighted MSE (envision4d stage).
     pub psnr: Option<f64>,
-    /// The gradient norms before clipping, per module group (an applied step's).
+    /// The gradient norms before clipping, per module group (`None` where the step stopped
+    /// before its gradients were measured).
     pub grad_norms: Option<GradNorms>,
     pub lr: f64,
     pub phase: Phase,

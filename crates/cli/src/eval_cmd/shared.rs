@@ -41,7 +41,9 @@ pub fn load_model(
     backend: BackendChoice,
     precision: PrecisionChoice,
 ) -> Result<Envision4d> {
-    let mut model = Envision4d::new(cfg, &backend.device()?);
+    let device = backend.device()?;
+    precision.check(&device)?;
+    let mut model = Envision4d::new(cfg, &device);
     load_checkpoint(&mut model, checkpoint, CheckpointKind::Full)
         .map_err(|e| InputError(e.to_string()))?;
     Ok(precision.apply(model)?)

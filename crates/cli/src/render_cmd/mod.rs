@@ -95,6 +95,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
     }
     let out_dir = plan.out.as_deref().map(OutDir::create).transpose()?;
     let device = args.backend.device()?;
+    args.precision.check(&device)?;
     let model = args
         .precision
         .apply(input::load_model(&cfg, &source, &device)?)?;
