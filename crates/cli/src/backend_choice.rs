@@ -9,7 +9,6 @@ use crate::InputError;
 use burn::tensor::{Device, DeviceKind, Tensor};
 use clap::ValueEnum;
 use envision4d_model::precision::Precision;
-use envision4d_model::Envision4d;
 use std::panic::{catch_unwind, AssertUnwindSafe};
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum, Default)]
@@ -47,17 +46,12 @@ impl PrecisionChoice {
     }
 
     /// Whether `device` computes in this precision: an input error naming the device and
-    /// the format otherwise (checked before a checkpoint is read).
+    /// the format otherwise (checked before a checkpoint is read; then
+    /// `Envision4d::with_precision`).
     pub fn check(self, device: &Device) -> Result<(), InputError> {
         let p = self.precision();
         p.check(device)
             .map_err(|e| InputError(format!("--precision {}: {e}", p.name())))
-    }
-
-    /// `model` in this precision, once its device is known to compute in it.
-    pub fn apply(self, model: Envision4d) -> Result<Envision4d, InputError> {
-        self.check(&model.device())?;
-        Ok(model.with_precision(self.precision()))
     }
 }
 

@@ -141,12 +141,9 @@ fn main() {
 
     // `--precision`: the aggregator's float format (forward mode; training stays f32). A
     // device without it prints a NaN row, so a benchmark table records the gap.
-    let precision = match arg(&args, "--precision").as_deref() {
-        None | Some("f32") => Precision::F32,
-        Some("f16") => Precision::F16,
-        Some("bf16") => Precision::Bf16,
-        Some(p) => panic!("--precision {p}: use f32, f16 or bf16"),
-    };
+    let precision = arg(&args, "--precision").map_or(Precision::F32, |p| {
+        Precision::from_name(&p).unwrap_or_else(|| panic!("--precision {p}: use f32, f16 or bf16"))
+    });
     assert!(
         !(train && precision != Precision::F32),
         "--precision applies to --mode forward"

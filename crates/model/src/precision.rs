@@ -37,6 +37,8 @@ impl Precision {
         }
     }
 
+    pub const ALL: [Precision; 3] = [Precision::F32, Precision::F16, Precision::Bf16];
+
     /// The name `--precision` spells.
     pub fn name(self) -> &'static str {
         match self {
@@ -44,6 +46,11 @@ impl Precision {
             Precision::F16 => "f16",
             Precision::Bf16 => "bf16",
         }
+    }
+
+    /// The precision `name` spells ([`Precision::name`]).
+    pub fn from_name(name: &str) -> Option<Precision> {
+        Self::ALL.into_iter().find(|p| p.name() == name)
     }
 
     /// Whether `device` can compute in this precision (storage, conversion and arithmetic);

@@ -69,31 +69,32 @@ fn errors(precision: Precision) -> Vec<(&'static str, f64)> {
     errs
 }
 
-/// Guards the f16 aggregator: a dtype mismatch inside it (a table or weight left in f32)
-/// panics on the CPU backend, an overflow gives NaN, and a cast that never happened gives
-/// f32's error (below 1e-4 in the parity tests) instead of half precision's.
-#[test]
-fn f16_aggregator_stays_near_the_reference() {
-    for (k, e) in errors(Precision::F16) {
-        assert!(e < 1e-2, "f16 {k}: error {e:e} above 1e-2");
+/// Holds every output of the tiny forward in `precision` under `bound`, and above f32's
+/// error (below 1e-4 in the parity tests), which a cast that never happened would give.
+fn assert_half_errors(precision: Precision, bound: f64) {
+    let name = precision.name();
+    for (k, e) in errors(precision) {
+        assert!(e < bound, "{name} {k}: error {e:e} above {bound:e}");
         assert!(
             e > 1e-4,
-            "f16 {k}: error {e:e} is f32's: nothing ran in f16"
+            "{name} {k}: error {e:e} is f32's: nothing ran in {name}"
         );
     }
+}
+
+/// Guards the f16 aggregator: a dtype mismatch inside it (a table or weight left in f32)
+/// panics on the CPU backend, an overflow gives NaN, and a cast that never happened gives
+/// f32's error instead of half precision's.
+#[test]
+fn f16_aggregator_stays_near_the_reference() {
+    assert_half_errors(Precision::F16, 1e-2);
 }
 
 /// Guards the bf16 aggregator the same way (bf16 keeps 8 significant bits, f16 11: its
 /// error is larger, its range f32's).
 #[test]
 fn bf16_aggregator_stays_near_the_reference() {
-    for (k, e) in errors(Precision::Bf16) {
-        assert!(e < 6e-2, "bf16 {k}: error {e:e} above 6e-2");
-        assert!(
-            e > 1e-4,
-            "bf16 {k}: error {e:e} is f32's: nothing ran in bf16"
-        );
-    }
+    assert_half_errors(Precision::Bf16, 6e-2);
 }
 
 /// Guards the LayerNorm statistics of half tokens: DINO's residual stream reaches hundreds,

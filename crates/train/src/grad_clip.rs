@@ -14,7 +14,8 @@ const NORM_EPS: f64 = 1e-6;
 
 /// The parts of the network whose gradient norms the log keeps apart: the paper's trainable
 /// modules, so a run shows where the rendering loss's signal goes (the motion head's share
-/// against the Gaussian and depth heads').
+/// against the Gaussian and depth heads'). Declared in [`GradGroup::ALL`]'s order, so a
+/// group's index in the per-group arrays is its discriminant.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum GradGroup {
     /// The temporal blocks inside the aggregator (`aggregator.time_blocks`).
@@ -84,10 +85,15 @@ pub struct GradNorms {
 }
 
 impl GradNorms {
+    /// A group's L2 norm (`None` without a gradient).
+    pub fn norm(&self, group: GradGroup) -> Option<f64> {
+        self.groups[group as usize]
+    }
+
     /// The root mean square of a group's gradient elements (`norm / sqrt(elements)`), the
     /// scale Adam's ε is compared with.
-    pub fn rms(&self, slot: usize) -> Option<f64> {
-        Some(self.groups[slot]? / (self.elements[slot].max(1) as f64).sqrt())
+    pub fn rms(&self, group: GradGroup) -> Option<f64> {
+        Some(self.norm(group)? / (self.elements[group as usize].max(1) as f64).sqrt())
     }
 }
 
@@ -111,10 +117,7 @@ impl ModuleVisitor for SquaredNorms<'_> {
         if let Some(g) = self.grads.get::<D>(p.id) {
             let elements = g.shape().num_elements();
             let s = g.powf_scalar(2.0).sum();
-            let slot = GradGroup::ALL
-                .iter()
-                .position(|&k| k == GradGroup::of(&self.path))
-                .unwrap_or(GradGroup::ALL.len() - 1);
+            let slot = GradGroup::of(&self.path) as usize;
             self.elements[slot] += elements;
             self.acc[slot] = Some(match self.acc[slot].take() {
                 None => s,

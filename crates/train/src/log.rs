@@ -2,7 +2,7 @@
 //! resume, records at or after the resumed step are dropped so the log continues exactly.
 
 use crate::error::{read, written, Result, TrainError};
-use crate::grad_clip::GradGroup;
+use crate::grad_clip::{GradGroup, GradNorms};
 use crate::step::{StepOutcome, StepReport};
 use crate::validate::ValReport;
 use serde_json::{json, Value};
@@ -15,6 +15,12 @@ pub struct JsonlLog {
 }
 
 /// JSON has no NaN: non-finite numbers are written as null.
+/// Whether applied step `step` (0-based) is written to the log (every `log_every`th; skipped
+/// steps always are).
+pub fn logged(step: u64, log_every: u64) -> bool {
+    (step + 1).is_multiple_of(log_every.max(1))
+}
+
 fn num(v: f64) -> Value {
     if v.is_finite() {
         json!(v)
@@ -83,22 +89,8 @@ impl JsonlLog {
             "depth": num(r.depth),
             "psnr": r.psnr.map_or(Value::Null, num),
             "grad_norm": r.grad_norms.map_or(Value::Null, |g| num(g.total)),
-            "grad_norms": r.grad_norms.map_or(Value::Null, |g| {
-                GradGroup::ALL
-                    .iter()
-                    .zip(g.groups)
-                    .filter_map(|(k, n)| Some((k.name().to_owned(), num(n?))))
-                    .collect::<serde_json::Map<_, _>>()
-                    .into()
-            }),
-            "grad_rms": r.grad_norms.map_or(Value::Null, |g| {
-                GradGroup::ALL
-                    .iter()
-                    .enumerate()
-                    .filter_map(|(i, k)| Some((k.name().to_owned(), num(g.rms(i)?))))
-                    .collect::<serde_json::Map<_, _>>()
-                    .into()
-            }),
+            "grad_norms": per_group(r.grad_norms, GradNorms::norm),
+            "grad_rms": per_group(r.grad_norms, GradNorms::rms),
             "lr": r.lr,
             "phase": format!("{:?}", r.phase).to_lowercase(),
             "outcome": outcome,
@@ -116,4 +108,15 @@ impl JsonlLog {
     pub fn checkpoint(&mut self, step: u64, dir: &Path) -> Result<()> {
         self.write(json!({"kind": "checkpoint", "step": step, "path": dir.display().to_string()}))
     }
+}
+
+/// `{group name: f(norms, group)}` for the groups that have a value; null without norms.
+fn per_group(norms: Option<GradNorms>, f: fn(&GradNorms, GradGroup) -> Option<f64>) -> Value {
+    norms.map_or(Value::Null, |g| {
+        GradGroup::ALL
+            .iter()
+            .filter_map(|&k| Some((k.name().to_owned(), num(f(&g, k)?))))
+            .collect::<serde_json::Map<_, _>>()
+            .into()
+    })
 }

@@ -284,7 +284,7 @@ pub fn run(
         )?;
         let rate = (trainer.step - first) as f64 / t_start.elapsed().as_secs_f64().max(1e-9);
         obs.step(&report, rate);
-        if !report.outcome.applied() || (step + 1) % cfg.run.log_every == 0 {
+        if !report.outcome.applied() || crate::log::logged(step, cfg.run.log_every) {
             log.step(&report, t0.elapsed().as_secs_f64(), rate)?;
         }
         if trainer.consecutive_nonfinite >= cfg.run.max_nonfinite_steps {

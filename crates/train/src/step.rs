@@ -78,8 +78,8 @@ pub struct StepReport {
     pub depth: f64,
     /// PSNR (dB) of the step's renders from their unweighted MSE (envision4d stage).
     pub psnr: Option<f64>,
-    /// The gradient norms before clipping, per module group (`None` where the step stopped
-    /// before its gradients were measured).
+    /// The gradient norms before clipping, per module group (measured on the steps the log
+    /// keeps and whenever global-norm clipping needs them; `None` otherwise).
     pub grad_norms: Option<GradNorms>,
     pub lr: f64,
     pub phase: Phase,
@@ -413,8 +413,14 @@ impl Trainer {
         lr: f64,
         mut grads: GradientsParams,
     ) -> (StepOutcome, Option<GradNorms>) {
-        let norms = grad_norms(&self.model, &grads);
-        if let (ClipMode::GlobalNorm, Some(n)) = (self.config.optim.grad_clip, norms) {
+        // Measured when the clip needs them or the log keeps this step (the step counter
+        // already points past it): a reduction and a host read saved on the other steps.
+        let clip = self.config.optim.grad_clip == ClipMode::GlobalNorm;
+        let logged = crate::log::logged(self.step.saturating_sub(1), self.config.run.log_every);
+        let norms = (clip || logged)
+            .then(|| grad_norms(&self.model, &grads))
+            .flatten();
+        if let (true, Some(n)) = (clip, norms) {
             clip_global_norm(
                 &self.model,
                 &mut grads,

@@ -46,7 +46,7 @@ pub fn load_model(
     let mut model = Envision4d::new(cfg, &device);
     load_checkpoint(&mut model, checkpoint, CheckpointKind::Full)
         .map_err(|e| InputError(e.to_string()))?;
-    Ok(precision.apply(model)?)
+    Ok(model.with_precision(precision.precision()))
 }
 
 /// The LPIPS network from `weights` (or the reason it is not reported, noted on stderr).

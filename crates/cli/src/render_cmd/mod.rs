@@ -96,9 +96,8 @@ pub fn run(args: RenderArgs) -> Result<()> {
     let out_dir = plan.out.as_deref().map(OutDir::create).transpose()?;
     let device = args.backend.device()?;
     args.precision.check(&device)?;
-    let model = args
-        .precision
-        .apply(input::load_model(&cfg, &source, &device)?)?;
+    let model =
+        input::load_model(&cfg, &source, &device)?.with_precision(args.precision.precision());
     let images = input::read_input(&args.input, &cfg, &device)?;
     let t_load = t0.elapsed();
 

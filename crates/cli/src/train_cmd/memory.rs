@@ -22,18 +22,15 @@ fn host_memory_bytes() -> Option<(f64, &'static str)> {
 /// `total` or the lowest numeric limit among `cgroup` file contents (`max`, absent or
 /// unparsable entries are no limit; v1 writes a huge number for none).
 fn lower_limit(total: f64, cgroup: &[Option<String>]) -> (f64, &'static str) {
-    cgroup
+    let limit = cgroup
         .iter()
         .flatten()
         .filter_map(|t| t.trim().parse::<f64>().ok())
-        .filter(|&l| l < total)
-        .fold((total, "MemTotal"), |(best, from), l| {
-            if l < best {
-                (l, "cgroup limit")
-            } else {
-                (best, from)
-            }
-        })
+        .min_by(f64::total_cmp);
+    match limit {
+        Some(l) if l < total => (l, "cgroup limit"),
+        _ => (total, "MemTotal"),
+    }
 }
 
 /// The process's peak resident memory so far, in bytes.
