@@ -196,6 +196,14 @@ impl<'a> Aligned<'a> {
     }
 }
 
+/// The exact displacement of every context Gaussian to every other timestamp in `pred`'s
+/// own world axes and unit, laid out as `pred.motions` (the oracle render's motion, and the
+/// target of the training's flow diagnostic, docs/TRAINING.md); `pred.motions` itself is
+/// not read. `None` when a frame lacks truth or no scale can be fitted.
+pub fn exact_motions(pred: &PredictedMotion, truth: &MotionTruth) -> Option<Vec<f32>> {
+    Aligned::new(pred, truth).map(|a| crate::motion_scene::oracle_motions(&a))
+}
+
 /// Scores `pred` against `truth`; `None` when a frame lacks truth or no scale can be fitted.
 pub fn motion_score(pred: &PredictedMotion, truth: &MotionTruth) -> Option<MotionScore> {
     Aligned::new(pred, truth).map(|a| score_aligned(&a, truth.masks))

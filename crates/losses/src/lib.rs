@@ -40,7 +40,7 @@ pub use error::{LossError, Result};
 pub use evaluate::{evaluate_images, ImageMetrics};
 pub use host::{HostDepths, HostImages};
 pub use lpips::{Lpips, LpipsNet, LpipsStatus, LpipsWeights};
-pub use mse::mse_per_frame;
+pub use mse::{mse_per_frame, weighted_mse_per_frame};
 pub use psnr::{psnr, psnr_from_mse};
 pub use region::{masked_psnr, masked_ssim, masked_ssims};
 pub use rgb::{RgbLoss, RgbTerms, LPIPS_LOSS_WEIGHT};

@@ -5,7 +5,7 @@ use burn::tensor::Tensor;
 
 use crate::error::{LossError, Result};
 use crate::lpips::{Lpips, LpipsStatus};
-use crate::mse::mse_per_frame;
+use crate::mse::{mse_per_frame, weighted_mse_per_frame};
 use crate::ssim_loss::ssim_per_frame;
 
 /// λ_lpips of the paper (§4, implementation details).
@@ -76,8 +76,24 @@ impl RgbLoss {
     /// `L_rgb` per frame of `[F, 3, H, W]` renders against targets in [0, 1]. The target is
     /// detached; gradients flow into `pred` only.
     pub fn per_frame(&self, pred: Tensor<4>, target: Tensor<4>) -> Result<RgbTerms> {
+        self.per_frame_weighted(pred, target, None)
+    }
+
+    /// [`RgbLoss::per_frame`] with the MSE term of `total` weighted per pixel
+    /// (`[F, 1, H, W]`, see [`weighted_mse_per_frame`]); `mse` stays the plain MSE (the
+    /// log's PSNR), LPIPS and SSIM stay unweighted.
+    pub fn per_frame_weighted(
+        &self,
+        pred: Tensor<4>,
+        target: Tensor<4>,
+        pixel_weight: Option<Tensor<4>>,
+    ) -> Result<RgbTerms> {
         let target = target.detach();
         let mse = mse_per_frame(pred.clone(), target.clone())?;
+        let weighted = match pixel_weight {
+            Some(wt) => Some(weighted_mse_per_frame(pred.clone(), target.clone(), wt)?),
+            None => None,
+        };
         let dssim = if self.lambda_ssim > 0.0 {
             Some(ssim_per_frame(pred.clone(), target.clone())?.neg() + 1.0)
         } else {
@@ -87,7 +103,7 @@ impl RgbLoss {
             Some(net) => Some(net.forward(pred, target)?),
             None => None,
         };
-        let mut total = mse.clone();
+        let mut total = weighted.unwrap_or_else(|| mse.clone());
         if let Some(lp) = &lpips {
             total = total + lp.clone() * self.lambda_lpips;
         }

@@ -37,8 +37,9 @@ pub fn playback(augment: &Augment, seed: u64, sample: u64) -> Playback {
     }
 }
 
-/// Applies `playback` to a window: frames, cameras and depth stay paired frame by frame,
-/// so pose labels (taken relative to the new frame 0) and depth remain exact.
+/// Applies `playback` to a window: frames, cameras, depth and motion truth stay paired
+/// frame by frame, so pose labels (taken relative to the new frame 0), depth and scene flow
+/// remain exact.
 pub fn apply(clip: &mut HostClip, playback: Playback) {
     match playback {
         Playback::Forward => {}
@@ -46,11 +47,18 @@ pub fn apply(clip: &mut HostClip, playback: Playback) {
             clip.frames.reverse();
             clip.cameras.reverse();
             clip.depths.reverse();
+            clip.dynamic_masks.reverse();
+            clip.motion_truth.reverse();
         }
         Playback::Held => {
             hold_first(&mut clip.frames);
             hold_first(&mut clip.cameras);
             hold_first(&mut clip.depths);
+            hold_first(&mut clip.motion_truth);
+            // A held window has no moving object.
+            for m in clip.dynamic_masks.iter_mut().flatten() {
+                m.fill(false);
+            }
         }
     }
 }

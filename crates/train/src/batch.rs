@@ -1,11 +1,13 @@
 //! Training batches: N frames per clip and, when the clips carry them, the ground-truth
 //! labels (pose encodings of all N frames, z-depth of the T_c context frames).
 
+use crate::config::LossConfig;
 use crate::distill::DistillTargets;
 use crate::error::{Result, TrainError};
 use burn::tensor::{Device, Tensor, TensorData};
 use envision4d_data::geom::{Intrinsics, Mat4};
-use envision4d_data::HostClip;
+use envision4d_data::{FrameMotionTruth, HostClip};
+use envision4d_eval::motion::MotionTruth;
 use envision4d_model::pose::{encode_pose, POSE_ENCODING_DIM};
 
 #[derive(Debug, Clone)]
@@ -14,6 +16,29 @@ pub struct Batch {
     pub images: Tensor<5>,
     /// Ground-truth labels (the backbone stage's supervision, `teacher = "ground_truth"`).
     pub labels: Option<DistillTargets>,
+    /// `[B, N, 1, H, W]`: 1 on each frame's ground-truth dynamic mask, 0 elsewhere and on
+    /// a frame without one (`[loss] dynamic_weight`; `None` when not asked for).
+    pub dynamic: Option<Tensor<5>>,
+    /// Each element's exact motion truth, on the host (`[loss] lambda_flow`).
+    pub motion: Option<Vec<ClipMotion>>,
+}
+
+/// One clip's motion truth as the flow diagnostic needs it (`envision4d_eval::motion`).
+#[derive(Debug, Clone)]
+pub struct ClipMotion {
+    pub size: (usize, usize),
+    pub frames: Vec<Option<FrameMotionTruth>>,
+    pub masks: Vec<Option<Vec<bool>>>,
+}
+
+impl ClipMotion {
+    pub fn truth(&self) -> MotionTruth<'_> {
+        MotionTruth {
+            size: self.size,
+            frames: &self.frames,
+            masks: &self.masks,
+        }
+    }
 }
 
 /// The 9-d pose encodings of a clip's cameras, expressed relative to the first camera (the
@@ -75,6 +100,67 @@ impl Batch {
             pose_enc: Tensor::from_data(TensorData::new(poses, [b, n, POSE_ENCODING_DIM]), device),
             depth: Tensor::from_data(TensorData::new(depth, [b, context, h, w, 1]), device),
         });
-        Ok(Batch { images, labels })
+        Ok(Batch {
+            images,
+            labels,
+            dynamic: None,
+            motion: None,
+        })
     }
+
+    /// [`Batch::from_clips`] plus the truth `loss`'s diagnostics need (`dynamic_weight`,
+    /// `lambda_flow`); a clip without it is an error naming the key.
+    pub fn for_training(
+        clips: &[HostClip],
+        context: usize,
+        with_labels: bool,
+        loss: &LossConfig,
+        device: &Device,
+    ) -> Result<Batch> {
+        let mut batch = Batch::from_clips(clips, context, with_labels, device)?;
+        if loss.dynamic_weight > 0.0 {
+            batch.dynamic = Some(dynamic_masks(clips, device)?);
+        }
+        if loss.lambda_flow > 0.0 {
+            batch.motion = Some(clips.iter().map(clip_motion).collect::<Result<_>>()?);
+        }
+        Ok(batch)
+    }
+}
+
+/// `[B, N, 1, H, W]` of the clips' dynamic masks (see [`Batch::dynamic`]).
+fn dynamic_masks(clips: &[HostClip], device: &Device) -> Result<Tensor<5>> {
+    let (h, w, n) = (clips[0].height, clips[0].width, clips[0].frames.len());
+    let mut out = Vec::with_capacity(clips.len() * n * h * w);
+    for c in clips {
+        if c.dynamic_masks.is_empty() {
+            return Err(TrainError::Unusable(
+                "loss.dynamic_weight needs clips with ground-truth dynamic masks (the synthetic layout); these have none".into(),
+            ));
+        }
+        for t in 0..n {
+            match c.dynamic_masks.get(t).and_then(Option::as_ref) {
+                Some(m) => out.extend(m.iter().map(|&on| f32::from(u8::from(on)))),
+                None => out.extend(std::iter::repeat_n(0.0, h * w)),
+            }
+        }
+    }
+    let data = TensorData::new(out, [clips.len(), n, 1, h, w]);
+    Ok(Tensor::from_data(data, device))
+}
+
+/// The motion truth of a clip's `N` frames (see [`Batch::motion`]).
+fn clip_motion(c: &HostClip) -> Result<ClipMotion> {
+    let n = c.frames.len();
+    if c.motion_truth.len() < n || c.motion_truth[..n].iter().any(Option::is_none) {
+        return Err(TrainError::Unusable(format!(
+            "loss.lambda_flow needs exact motion truth on all {n} frames of every clip (the synthetic layout's depth, instances and tracks); a clip has it on {} of them",
+            c.motion_truth.iter().flatten().count()
+        )));
+    }
+    Ok(ClipMotion {
+        size: (c.height, c.width),
+        frames: c.motion_truth[..n].to_vec(),
+        masks: c.dynamic_masks.clone(),
+    })
 }

@@ -106,6 +106,27 @@ pub struct LossConfig {
     /// LPIPS (VGG) weights, as `--lpips-weights` takes them (`BACKBONE.pth,LINS.pth` or one
     /// file with the package's names); required when `lambda_lpips > 0`.
     pub lpips_weights: Option<PathBuf>,
+    /// Diagnostic, not the paper's loss (0, the default, is off): each target pixel on the
+    /// ground-truth dynamic mask counts `1 + dynamic_weight` times in the MSE of `L_rgb`
+    /// (normalised per frame, [`envision4d_losses::weighted_mse_per_frame`]), so the moving
+    /// objects, a few percent of the pixels, carry more of the rendering signal. Needs
+    /// clips with dynamic masks (the synthetic layout). Left out of the TOML when 0, so
+    /// runs started before the key existed keep their resume identity.
+    #[serde(skip_serializing_if = "is_zero")]
+    pub dynamic_weight: f64,
+    /// Diagnostic, not the paper's loss (0, the default, is off): λ of a supervised
+    /// scene-flow term, the mean L1 distance between every predicted Gaussian displacement
+    /// and the exact one of the surface at its pixel, in the model's axes and unit (the
+    /// evaluation's oracle motion, docs/EVAL.md). It asks whether the motion head can
+    /// represent the motion at all, apart from how much the rendering loss tells it. Needs
+    /// clips with motion truth (the synthetic layout) and a motion model; reads the scene
+    /// back to the host every step.
+    #[serde(skip_serializing_if = "is_zero")]
+    pub lambda_flow: f64,
+}
+
+fn is_zero(v: &f64) -> bool {
+    *v == 0.0
 }
 
 impl Default for LossConfig {
@@ -117,6 +138,8 @@ impl Default for LossConfig {
             rotation_weight: 1.0,
             lambda_ssim: 0.0,
             lpips_weights: None,
+            dynamic_weight: 0.0,
+            lambda_flow: 0.0,
         }
     }
 }

@@ -265,6 +265,26 @@ pub fn validate(cfg: &TrainConfig) -> Result<()> {
     non_negative("loss.lambda_depth", l.lambda_depth)?;
     non_negative("loss.rotation_weight", l.rotation_weight)?;
     non_negative("loss.lambda_ssim", l.lambda_ssim)?;
+    non_negative("loss.dynamic_weight", l.dynamic_weight)?;
+    non_negative("loss.lambda_flow", l.lambda_flow)?;
+    if l.lambda_flow > 0.0 && cfg.model.motion_model == ModelMotion::Off {
+        return Err(TrainError::invalid(
+            "loss.lambda_flow",
+            l.lambda_flow,
+            "supervises the motion head, which [ablation] motion = \"off\" removes",
+        ));
+    }
+    if (l.lambda_flow > 0.0 || l.dynamic_weight > 0.0) && cfg.stage != Stage::Envision4d {
+        return Err(TrainError::invalid(
+            if l.lambda_flow > 0.0 {
+                "loss.lambda_flow"
+            } else {
+                "loss.dynamic_weight"
+            },
+            l.lambda_flow.max(l.dynamic_weight),
+            "applies to stage = \"envision4d\" (the backbone stage renders nothing)",
+        ));
+    }
     if l.lambda_lpips > 0.0 && l.lpips_weights.is_none() && cfg.init != Init::Random {
         return Err(TrainError::invalid(
             "loss.lambda_lpips",

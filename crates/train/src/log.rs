@@ -88,6 +88,7 @@ impl JsonlLog {
             "camera": num(r.camera),
             "depth": num(r.depth),
             "psnr": r.psnr.map_or(Value::Null, num),
+            "flow": r.flow.map_or(Value::Null, num),
             "grad_norm": r.grad_norms.map_or(Value::Null, |g| num(g.total)),
             "grad_norms": per_group(r.grad_norms, GradNorms::norm),
             "grad_rms": per_group(r.grad_norms, GradNorms::rms),

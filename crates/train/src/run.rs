@@ -5,7 +5,7 @@
 use crate::augment;
 use crate::batch::Batch;
 use crate::checkpoint::{self, MODEL_FILE};
-use crate::config::{Purpose, Stage, Teacher, TrainConfig};
+use crate::config::{LossConfig, Purpose, Stage, Teacher, TrainConfig};
 use crate::dataset::{open_dataset, split};
 use crate::error::{Result, TrainError};
 use crate::log::JsonlLog;
@@ -141,25 +141,26 @@ fn next_clips(
         .collect()
 }
 
-/// One step of `trainer` on `clips` (split across `devices` when there are several).
+/// One step of `trainer` on `clips` (split across `devices` when there are several), with
+/// the truth the loss's diagnostics need.
 fn step_on(
     trainer: &mut Trainer,
     clips: &[HostClip],
-    labels: (usize, bool),
+    labels: (usize, bool, &LossConfig),
     device: &Device,
     (devices, reduce): (&[Device], GradientReduce),
 ) -> Result<StepReport> {
-    let (depth_frames, with_gt) = labels;
+    let (depth_frames, with_gt, loss) = labels;
     if devices.len() > 1 {
         let per = clips.len() / devices.len();
         let shards = clips
             .chunks(per)
             .zip(devices)
-            .map(|(c, d)| Batch::from_clips(c, depth_frames, with_gt, d))
+            .map(|(c, d)| Batch::for_training(c, depth_frames, with_gt, loss, d))
             .collect::<Result<Vec<_>>>()?;
         trainer.train_step_parallel(&shards, devices, reduce)
     } else {
-        let batch = Batch::from_clips(clips, depth_frames, with_gt, device)?;
+        let batch = Batch::for_training(clips, depth_frames, with_gt, loss, device)?;
         trainer.train_step(&batch)
     }
 }
@@ -278,7 +279,7 @@ pub fn run(
         let report = step_on(
             &mut trainer,
             &clips,
-            (depth_frames, with_gt),
+            (depth_frames, with_gt, &cfg.loss),
             device,
             (devices, opts.reduce),
         )?;

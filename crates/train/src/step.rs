@@ -33,6 +33,8 @@ pub struct LossTerms {
     pub rgb_mse: Option<Tensor<1>>,
     pub camera: Option<Tensor<1>>,
     pub depth: Option<Tensor<1>>,
+    /// The flow diagnostic's term before λ (`[loss] lambda_flow`; `None` when off).
+    pub flow: Option<Tensor<1>>,
     pub phase: Phase,
 }
 
@@ -44,6 +46,7 @@ pub(crate) struct LossValues {
     pub camera: f64,
     pub depth: f64,
     pub mse: Option<f64>,
+    pub flow: Option<f64>,
 }
 
 impl LossTerms {
@@ -57,6 +60,7 @@ impl LossTerms {
             self.camera.as_ref().map_or_else(zero, one),
             self.depth.as_ref().map_or_else(zero, one),
             self.rgb_mse.as_ref().map_or_else(zero, one),
+            self.flow.as_ref().map_or_else(zero, one),
         ]);
         LossValues {
             total: v[0],
@@ -64,6 +68,7 @@ impl LossTerms {
             camera: v[2],
             depth: v[3],
             mse: self.rgb_mse.as_ref().map(|_| v[4]),
+            flow: self.flow.as_ref().map(|_| v[5]),
         }
     }
 }
@@ -78,6 +83,8 @@ pub struct StepReport {
     pub depth: f64,
     /// PSNR (dB) of the step's renders from their unweighted MSE (envision4d stage).
     pub psnr: Option<f64>,
+    /// The flow diagnostic's term (`[loss] lambda_flow`), when on and the step has motion.
+    pub flow: Option<f64>,
     /// The gradient norms before clipping, per module group (measured on the steps the log
     /// keeps and whenever global-norm clipping needs them; `None` otherwise).
     pub grad_norms: Option<GradNorms>,
@@ -96,6 +103,7 @@ impl StepReport {
             camera: f64::NAN,
             depth: f64::NAN,
             psnr: None,
+            flow: None,
             grad_norms: None,
             lr,
             phase,
@@ -258,6 +266,7 @@ impl Trainer {
                     rgb_mse: None,
                     camera: Some(t.camera),
                     depth: Some(t.depth),
+                    flow: None,
                     phase: Phase::Supervised,
                 })
             }
@@ -289,6 +298,15 @@ impl Trainer {
         let scene = predict_scene_with(model, context, motion)?;
         let (rgb, mse) = self.rendering_loss(&scene, batch, &plan)?;
         let mut total = rgb.clone();
+        let lambda_flow = self.config.loss.lambda_flow;
+        let flow = if plan.motion && lambda_flow > 0.0 {
+            Some(crate::motion_signal::flow_loss(&scene, batch, tc, n)?)
+        } else {
+            None
+        };
+        if let Some(f) = &flow {
+            total = total + f.clone() * lambda_flow;
+        }
         let (mut camera, mut depth) = (None, None);
         if let Some(t) = labels(self.config.teacher, self.teacher.as_ref(), batch, tc)? {
             let d = scene
@@ -307,6 +325,7 @@ impl Trainer {
             rgb_mse: Some(mse),
             camera,
             depth,
+            flow,
             phase: plan.phase,
         })
     }
@@ -342,7 +361,15 @@ impl Trainer {
                     .collect(),
                 0,
             );
-            let terms = self.rgb_loss_on(&device)?.per_frame(rendered, gt)?;
+            let weight = crate::motion_signal::pixel_weights(
+                batch,
+                b,
+                &plan.targets,
+                self.config.loss.dynamic_weight,
+            );
+            let terms = self
+                .rgb_loss_on(&device)?
+                .per_frame_weighted(rendered, gt, weight)?;
             mse_sum = mse_sum + terms.mse.sum().detach();
             rgb_sum = rgb_sum + (terms.total * wt.clone()).sum();
         }
@@ -378,6 +405,7 @@ impl Trainer {
             camera: v.camera,
             depth: v.depth,
             psnr: v.mse.map(psnr_from_mse),
+            flow: v.flow,
             grad_norms: None,
             lr,
             phase: terms.phase,

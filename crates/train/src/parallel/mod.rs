@@ -122,6 +122,10 @@ impl Trainer {
                 camera: mean(|v| v.camera),
                 depth: mean(|v| v.depth),
                 psnr,
+                flow: vals
+                    .iter()
+                    .all(|v| v.flow.is_some())
+                    .then(|| mean(|v| v.flow.unwrap_or(f64::NAN))),
                 grad_norms: None,
                 lr: self.schedule.learning_rate(step),
                 phase: self.schedule.phase(step),

@@ -7,6 +7,7 @@ mod config;
 mod eval;
 mod grad_norms;
 mod memory;
+mod motion_signal;
 mod pose;
 mod run;
 mod schedule;
