@@ -53,12 +53,18 @@ pub(crate) fn flow_loss(scene: &Scene, batch: &Batch, tc: usize, n: usize) -> Re
     let a = &scene.adapted;
     let [bsz, _, k, g, _] = a.motions.dims();
     let [_, _, _, h, w] = batch.images.dims();
+    if truth.len() != bsz {
+        return Err(TrainError::Internal(format!(
+            "motion truth of {} clips for a batch of {bsz}",
+            truth.len()
+        )));
+    }
     let device = a.motions.device();
     let means: Vec<f32> = a.means.clone().detach().into_data().iter::<f32>().collect();
     let per_element = tc * g * 3;
     let mut target = Vec::with_capacity(bsz * tc * k * g * 3);
     let mut valid = Vec::with_capacity(bsz);
-    for (b, clip) in truth.iter().enumerate().take(bsz) {
+    for (b, clip) in truth.iter().enumerate() {
         let extrinsics = host_extrinsics(&scene.pred.backbone.extrinsics, b)
             .map_err(|e| TrainError::Internal(format!("predicted cameras: {e}")))?;
         let pred = PredictedMotion {
@@ -90,4 +96,44 @@ pub(crate) fn flow_loss(scene: &Scene, batch: &Batch, tc: usize, n: usize) -> Re
         .mean_dim(1)
         .reshape([bsz]);
     Ok((l1 * valid).sum() / count as f64)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use burn::tensor::Device;
+
+    /// Guards the weight map against picking the wrong frame or element (the mask of the
+    /// frame being rendered must weight its pixels) and a wrong `1 + w`: two elements of
+    /// three 1x2 frames, each frame's mask marks a different pixel.
+    #[test]
+    fn weights_are_one_plus_w_on_the_target_frames_mask() {
+        let device = Device::default();
+        // Element 0: frames mark pixel (0, 0), (0, 1), none; element 1: none, none, both.
+        let masks = vec![1.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 1.0];
+        let batch = Batch {
+            images: Tensor::zeros([2, 3, 3, 1, 2], &device),
+            labels: None,
+            dynamic: Some(Tensor::from_data(
+                TensorData::new(masks, [2, 3, 1, 1, 2]),
+                &device,
+            )),
+            motion: None,
+        };
+        let got = |b: usize, targets: &[usize]| -> Vec<f32> {
+            pixel_weights(&batch, b, targets, 4.0)
+                .expect("masks present")
+                .into_data()
+                .iter::<f32>()
+                .collect()
+        };
+        assert_eq!(got(0, &[1, 0]), vec![1.0, 5.0, 5.0, 1.0]);
+        assert_eq!(got(1, &[2]), vec![5.0, 5.0]);
+        assert_eq!(got(1, &[0, 1]), vec![1.0; 4]);
+        let without = Batch {
+            dynamic: None,
+            ..batch.clone()
+        };
+        assert!(pixel_weights(&without, 0, &[0], 4.0).is_none());
+    }
 }
