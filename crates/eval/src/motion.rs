@@ -204,6 +204,20 @@ pub fn exact_motions(pred: &PredictedMotion, truth: &MotionTruth) -> Option<Vec<
     Aligned::new(pred, truth).map(|a| crate::motion_scene::oracle_motions(&a))
 }
 
+/// [`exact_motions`] and the true world-to-camera of all `N` frames in the same axes and
+/// unit (the oracle renders' cameras), from one alignment.
+pub fn exact_motions_and_cameras(
+    pred: &PredictedMotion,
+    truth: &MotionTruth,
+) -> Option<(Vec<f32>, Vec<Mat4>)> {
+    Aligned::new(pred, truth).map(|a| {
+        (
+            crate::motion_scene::oracle_motions(&a),
+            crate::motion_scene::true_cameras(&a),
+        )
+    })
+}
+
 /// Scores `pred` against `truth`; `None` when a frame lacks truth or no scale can be fitted.
 pub fn motion_score(pred: &PredictedMotion, truth: &MotionTruth) -> Option<MotionScore> {
     Aligned::new(pred, truth).map(|a| score_aligned(&a, truth.masks))

@@ -26,7 +26,7 @@ pub mod init;
 pub mod load;
 pub mod log;
 pub mod memory;
-mod motion_signal;
+pub mod motion_signal;
 pub mod parallel;
 pub mod run;
 pub mod schedule;

@@ -17,6 +17,7 @@ use burn::tensor::{Tensor, TensorData};
 use envision4d_eval::motion::{exact_motions, PredictedMotion};
 use envision4d_eval::pose_error::host_extrinsics;
 use envision4d_model::scene::Scene;
+use glam::DVec3;
 
 /// `[F, 1, H, W]` per-pixel weights of element `b`'s `targets`: `1 + w` on the target
 /// frame's dynamic mask (where the mover must appear), 1 elsewhere. `None` without masks.
@@ -98,6 +99,126 @@ pub(crate) fn flow_loss(scene: &Scene, batch: &Batch, tc: usize, n: usize) -> Re
     Ok((l1 * valid).sum() / count as f64)
 }
 
+/// How well the rendering loss's gradient points the Gaussians of one target timestamp
+/// toward their exact positions ([`gradient_alignment`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct AlignmentRow {
+    /// Target timestamp `j` (every context source `i ≠ j` pooled).
+    pub target: usize,
+    /// Pixels whose exact displacement is non-zero, and how many of them get any gradient.
+    pub moving: usize,
+    pub moving_reached: usize,
+    /// `Σ (−g)·e / sqrt(Σ|g|² · Σ|e|²)` over the moving pixels, `e = exact − current`: 1
+    /// when the descent direction is the way to the truth, 0 when unrelated.
+    pub moving_cosine: Option<f64>,
+    /// The same with `g` and `e` projected on the plane across the target camera's ray
+    /// through the Gaussian (what an image can show of a displacement; the part along the
+    /// ray only changes a Gaussian's size on screen).
+    pub moving_image_cosine: Option<f64>,
+    /// The mean per-pixel image-plane cosine over moving pixels with a gradient.
+    pub moving_image_mean_cosine: Option<f64>,
+    /// The aggregate image-plane cosine on the static pixels (toward rest).
+    pub static_image_cosine: Option<f64>,
+    /// Root mean square of the gradient per moving / static pixel.
+    pub moving_grad_rms: f64,
+    pub static_grad_rms: f64,
+}
+
+#[derive(Default)]
+struct Sums {
+    dot: f64,
+    gg: f64,
+    ee: f64,
+    n: usize,
+    reached: usize,
+    cos_sum: f64,
+}
+
+impl Sums {
+    fn add(&mut self, g: DVec3, e: DVec3) {
+        let (dot, gg, ee) = (-g.dot(e), g.length_squared(), e.length_squared());
+        self.dot += dot;
+        self.gg += gg;
+        self.ee += ee;
+        self.n += 1;
+        if gg > 0.0 && ee > 0.0 {
+            self.reached += 1;
+            self.cos_sum += dot / (gg * ee).sqrt();
+        }
+    }
+
+    fn cosine(&self) -> Option<f64> {
+        (self.gg > 0.0 && self.ee > 0.0).then(|| self.dot / (self.gg * self.ee).sqrt())
+    }
+
+    fn mean_cosine(&self) -> Option<f64> {
+        (self.reached > 0).then(|| self.cos_sum / self.reached as f64)
+    }
+
+    fn rms(&self) -> f64 {
+        if self.n == 0 {
+            0.0
+        } else {
+            (self.gg / self.n as f64).sqrt()
+        }
+    }
+}
+
+/// One element's displacements and where they are seen from, all in the model's world:
+/// `[T_c, N−1, G, 3]` buffers laid out as `AdaptedGaussians::motions`, the `[T_c, G, 3]`
+/// means, and the `N` camera centres.
+pub struct AlignmentInputs<'a> {
+    pub grad: &'a [f32],
+    pub exact: &'a [f32],
+    pub current: &'a [f32],
+    pub means: &'a [f32],
+    pub centres: &'a [DVec3],
+    pub context: usize,
+}
+
+/// Per future target `j ≥ T_c`, how the gradient of a rendering loss with respect to the
+/// displacements relates to the way from the current displacements to the exact ones. A
+/// pixel is moving when its exact displacement is non-zero (static scenery's is exactly 0).
+pub fn gradient_alignment(x: &AlignmentInputs) -> Vec<AlignmentRow> {
+    let (tc, n) = (x.context, x.centres.len());
+    let g = x.means.len() / (3 * tc.max(1));
+    let at =
+        |s: &[f32], k: usize| DVec3::new(s[3 * k] as f64, s[3 * k + 1] as f64, s[3 * k + 2] as f64);
+    (tc..n)
+        .map(|j| {
+            let (mut moving, mut moving_img, mut still_img) =
+                (Sums::default(), Sums::default(), Sums::default());
+            for i in 0..tc {
+                let slot = i * (n - 1) + envision4d_model::motion::target_slot(i, j);
+                for p in 0..g {
+                    let k = slot * g + p;
+                    let (gr, ex, cu) = (at(x.grad, k), at(x.exact, k), at(x.current, k));
+                    let e = ex - cu;
+                    let ray = (at(x.means, i * g + p) + cu - x.centres[j]).normalize_or_zero();
+                    let across = |v: DVec3| v - ray * v.dot(ray);
+                    if ex != DVec3::ZERO {
+                        moving.add(gr, e);
+                        moving_img.add(across(gr), across(e));
+                    } else {
+                        still_img.add(across(gr), across(e));
+                    }
+                }
+            }
+            AlignmentRow {
+                target: j,
+                moving: moving.n,
+                moving_reached: moving.reached,
+                moving_cosine: moving.cosine(),
+                moving_image_cosine: moving_img.cosine(),
+                moving_image_mean_cosine: moving_img.mean_cosine(),
+                static_image_cosine: still_img.cosine(),
+                moving_grad_rms: moving.rms(),
+                static_grad_rms: still_img.rms(),
+            }
+        })
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -135,5 +256,51 @@ mod tests {
             ..batch.clone()
         };
         assert!(pixel_weights(&without, 0, &[0], 4.0).is_none());
+    }
+
+    /// Guards the alignment's sign, pooling and image-plane projection (a descent direction
+    /// read as the gradient itself would report −1 for a perfect signal; a projection on the
+    /// wrong axis would keep the part along the ray): T_c = 1, N = 2, the target camera at
+    /// the origin looking down +z, three pixels at (0, 0, 10): one moving pixel whose
+    /// descent points at the truth across the ray, one whose truth is along the ray, one
+    /// static.
+    #[test]
+    fn alignment_of_a_hand_built_gradient() {
+        let exact = [2.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0];
+        let current = [0.0; 9];
+        // Descent −g: (1,0,0) toward pixel 0's truth; (0,1,1) for pixel 1, whose truth
+        // (0,0,1) lies along the ray; pixel 2 static, pushed across the ray.
+        let grad = [-1.0, 0.0, 0.0, 0.0, -1.0, -1.0, 0.0, 3.0, 0.0];
+        let means = [0.0, 0.0, 10.0, 0.0, 0.0, 10.0, 0.0, 0.0, 10.0];
+        let centres = [DVec3::ZERO, DVec3::ZERO];
+        let rows = gradient_alignment(&AlignmentInputs {
+            grad: &grad,
+            exact: &exact,
+            current: &current,
+            means: &means,
+            centres: &centres,
+            context: 1,
+        });
+        assert_eq!(rows.len(), 1);
+        let r = &rows[0];
+        assert_eq!((r.target, r.moving, r.moving_reached), (1, 2, 2));
+        // 3D: Σ(−g)·e = 2 + 1; Σ|g|² = 1 + 2; Σ|e|² = 4 + 1.
+        let want = 3.0 / (3.0f64 * 5.0).sqrt();
+        assert!((r.moving_cosine.unwrap() - want).abs() < 1e-12, "{r:?}");
+        // Across the ray (z dropped): pixel 0 as before; pixel 1's e vanishes, so only
+        // pixel 0 has a cosine (1) and the aggregate is 2 / sqrt((1 + 1) · 4).
+        assert!(
+            (r.moving_image_mean_cosine.unwrap() - 1.0).abs() < 1e-12,
+            "{r:?}"
+        );
+        let want = 2.0 / (2.0f64 * 4.0).sqrt();
+        assert!(
+            (r.moving_image_cosine.unwrap() - want).abs() < 1e-12,
+            "{r:?}"
+        );
+        // Static at rest: no direction to compare, but its gradient is counted.
+        assert_eq!(r.static_image_cosine, None);
+        assert!((r.static_grad_rms - 3.0).abs() < 1e-12);
+        assert!((r.moving_grad_rms - 1.5f64.sqrt()).abs() < 1e-12);
     }
 }
