@@ -274,6 +274,13 @@ pub fn validate(cfg: &TrainConfig) -> Result<()> {
             "supervises the motion head, which [ablation] motion = \"off\" removes",
         ));
     }
+    if l.flow_balanced && l.lambda_flow == 0.0 {
+        return Err(TrainError::invalid(
+            "loss.flow_balanced",
+            true,
+            "weighs the flow term, which is off (set loss.lambda_flow > 0)",
+        ));
+    }
     if (l.lambda_flow > 0.0 || l.dynamic_weight > 0.0) && cfg.stage != Stage::Envision4d {
         return Err(TrainError::invalid(
             if l.lambda_flow > 0.0 {

@@ -1,14 +1,16 @@
-//! Two diagnostics of the motion head's training signal, off by default and never part of
-//! the paper's loss (docs/TRAINING.md, "Motion diagnostics"). The rendering loss is the
-//! motion head's only teacher, and on the motion benchmark it reaches the head three orders
-//! of magnitude weaker than the distillation terms reach the other heads (docs/RESULTS.md,
-//! "Where the gradient goes"). These ask why the head still learns no object motion:
-//! - `[loss] dynamic_weight`: more rendering signal on the ground-truth moving objects
-//!   ([`pixel_weights`]);
-//! - `[loss] lambda_flow`: the exact scene flow as a direct target ([`flow_loss`]), whether
-//!   the head can represent the motion at all.
+//! Diagnostics of the motion head's training signal, never part of the paper's loss
+//! (docs/TRAINING.md, "Motion diagnostics"). The rendering loss is the motion head's only
+//! teacher, and on the motion benchmark it reaches the head three orders of magnitude weaker
+//! than the distillation terms reach the other heads (docs/RESULTS.md, "Where the gradient
+//! goes"). These ask why the head still learns no object motion:
+//! - `[loss] dynamic_weight` (off by default): more rendering signal on the ground-truth
+//!   moving objects ([`pixel_weights`]);
+//! - `[loss] lambda_flow` (off by default): the exact scene flow as a direct target
+//!   ([`flow_loss`]), whether the head can represent the motion at all;
+//! - [`gradient_alignment`]: whether the rendering loss's gradient points each displacement
+//!   toward the truth (`examples/motion_gradient.rs`).
 //!
-//! Both read ground truth only the synthetic world has, so they diagnose; they do not train
+//! All read ground truth only the synthetic world has, so they diagnose; they do not train
 //! a model for real data.
 
 use crate::batch::Batch;
@@ -45,9 +47,16 @@ pub(crate) fn pixel_weights(
 /// (`AdaptedGaussians::motions`, `[B, T_c, N−1, G, 3]`) and the exact ones in each element's
 /// own axes and unit, averaged over the elements whose truth aligns (a clip whose scale
 /// cannot be fitted adds nothing; when none does, the term is 0). Sky pixels, which have no
-/// surface, get the exact displacement 0. Reads the means and the cameras back to the host:
-/// a diagnostic's cost.
-pub(crate) fn flow_loss(scene: &Scene, batch: &Batch, tc: usize, n: usize) -> Result<Tensor<1>> {
+/// surface, get the exact displacement 0. `balanced`: the moving pixels (non-zero exact
+/// displacement) and the static ones each make half of an element's mean, so the static
+/// majority (~92% of the suite's pixels) cannot make zero motion the L1 optimum. Reads the
+/// means and the cameras back to the host: a diagnostic's cost.
+pub(crate) fn flow_loss(
+    scene: &Scene,
+    batch: &Batch,
+    (tc, n): (usize, usize),
+    balanced: bool,
+) -> Result<Tensor<1>> {
     let truth = batch.motion.as_ref().ok_or_else(|| {
         TrainError::Internal("loss.lambda_flow is on but the batch carries no motion truth".into())
     })?;
@@ -65,6 +74,7 @@ pub(crate) fn flow_loss(scene: &Scene, batch: &Batch, tc: usize, n: usize) -> Re
     let per_element = tc * g * 3;
     let mut target = Vec::with_capacity(bsz * tc * k * g * 3);
     let mut valid = Vec::with_capacity(bsz);
+    let mut weights = Vec::with_capacity(bsz * tc * k * g);
     for (b, clip) in truth.iter().enumerate() {
         let extrinsics = host_extrinsics(&scene.pred.backbone.extrinsics, b)
             .map_err(|e| TrainError::Internal(format!("predicted cameras: {e}")))?;
@@ -79,11 +89,13 @@ pub(crate) fn flow_loss(scene: &Scene, batch: &Batch, tc: usize, n: usize) -> Re
         };
         match exact_motions(&pred, &clip.truth()) {
             Some(m) => {
+                weights.extend(point_weights(&m, balanced));
                 target.extend(m);
                 valid.push(1.0f32);
             }
             None => {
                 target.extend(std::iter::repeat_n(0.0, tc * k * g * 3));
+                weights.extend(std::iter::repeat_n(0.0, tc * k * g));
                 valid.push(0.0);
             }
         }
@@ -91,12 +103,37 @@ pub(crate) fn flow_loss(scene: &Scene, batch: &Batch, tc: usize, n: usize) -> Re
     let count = valid.iter().sum::<f32>().max(1.0);
     let target = Tensor::<5>::from_data(TensorData::new(target, [bsz, tc, k, g, 3]), &device);
     let valid = Tensor::<1>::from_data(TensorData::new(valid, [bsz]), &device);
-    let l1 = (a.motions.clone() - target)
-        .abs()
+    let weights = Tensor::<5>::from_data(TensorData::new(weights, [bsz, tc, k, g, 1]), &device);
+    // Each element's weights sum to 1 over its points; a point's L1 is the mean over x, y, z.
+    let l1 = ((a.motions.clone() - target).abs() * weights)
         .reshape([bsz, tc * k * g * 3])
-        .mean_dim(1)
-        .reshape([bsz]);
+        .sum_dim(1)
+        .reshape([bsz])
+        / 3.0;
     Ok((l1 * valid).sum() / count as f64)
+}
+
+/// One element's weight per point (`exact` is `[.., 3]`), summing to 1: uniform, or
+/// `balanced` with the moving and the static points each summing to ½ (all to the one set
+/// present when the other is empty).
+fn point_weights(exact: &[f32], balanced: bool) -> Vec<f32> {
+    let moving: Vec<bool> = exact.chunks_exact(3).map(|d| d != [0.0; 3]).collect();
+    let total = moving.len().max(1) as f32;
+    if !balanced {
+        return vec![1.0 / total; moving.len()];
+    }
+    let n_moving = moving.iter().filter(|&&m| m).count();
+    let n_static = moving.len() - n_moving;
+    let share = |n: usize, other: usize| match (n, other) {
+        (0, _) => 0.0,
+        (_, 0) => 1.0 / n as f32,
+        _ => 0.5 / n as f32,
+    };
+    let (w_moving, w_static) = (share(n_moving, n_static), share(n_static, n_moving));
+    moving
+        .iter()
+        .map(|&m| if m { w_moving } else { w_static })
+        .collect()
 }
 
 /// How well the rendering loss's gradient points the Gaussians of one target timestamp
@@ -256,6 +293,18 @@ mod tests {
             ..batch.clone()
         };
         assert!(pixel_weights(&without, 0, &[0], 4.0).is_none());
+    }
+
+    /// Guards the balanced flow target's weights (a static majority must not outweigh the
+    /// movers; every element's weights sum to 1): 1 moving and 3 static points, and the
+    /// all-static case.
+    #[test]
+    fn balanced_point_weights_split_moving_and_static_halves() {
+        let exact = [1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0];
+        assert_eq!(point_weights(&exact, false), vec![0.25; 4]);
+        let b = point_weights(&exact, true);
+        assert_eq!(b, vec![0.5, 0.5 / 3.0, 0.5 / 3.0, 0.5 / 3.0]);
+        assert_eq!(point_weights(&[0.0; 6], true), vec![0.5, 0.5]);
     }
 
     /// Guards the alignment's sign, pooling and image-plane projection (a descent direction

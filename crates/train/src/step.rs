@@ -300,7 +300,12 @@ impl Trainer {
         let mut total = rgb.clone();
         let lambda_flow = self.config.loss.lambda_flow;
         let flow = if plan.motion && lambda_flow > 0.0 {
-            Some(crate::motion_signal::flow_loss(&scene, batch, tc, n)?)
+            Some(crate::motion_signal::flow_loss(
+                &scene,
+                batch,
+                (tc, n),
+                self.config.loss.flow_balanced,
+            )?)
         } else {
             None
         };

@@ -138,6 +138,12 @@ fn motion_diagnostics_refused_where_they_cannot_act() {
         err.contains("loss.lambda_flow") && err.contains("backbone"),
         "{err}"
     );
+    let lone = text.replace(
+        "lambda_lpips = 0.0",
+        "lambda_lpips = 0.0\nflow_balanced = true",
+    );
+    let err = parse(&lone).unwrap_err().to_string();
+    assert!(err.contains("loss.flow_balanced"), "{err}");
     let neg = text.replace(
         "lambda_lpips = 0.0",
         "lambda_lpips = 0.0\ndynamic_weight = -1.0",
