@@ -5,11 +5,11 @@
 use crate::error::Result;
 use crate::motion::{score_aligned, Aligned, MotionScore, MotionTruth, PredictedMotion};
 use crate::motion_maps::{pair_maps, PairMaps};
-use crate::pose_error::extrinsics_tensor;
+use crate::pose_error::{clip_intrinsics_tensor, extrinsics_tensor};
 use crate::protocol::timed_render;
 use crate::report::Method;
 use crate::EvalOptions;
-use burn::tensor::{Device, Tensor, TensorData};
+use burn::tensor::{Tensor, TensorData};
 use envision4d_data::geom::Mat4;
 use envision4d_data::HostClip;
 use envision4d_losses::HostImages;
@@ -166,7 +166,7 @@ pub(crate) fn oracle_renders(
     exact.motions = Tensor::from_data(data, &device);
     let still = scene.without_motion().adapted;
     let true_extr = extrinsics_tensor(cameras, &device);
-    let true_intr = intrinsics_tensor(clip, cameras.len(), &device);
+    let true_intr = clip_intrinsics_tensor(clip, cameras.len(), &device);
     let runs = [
         (Method::OracleMotion, &exact, extr, intr, pred_poses),
         (
@@ -203,16 +203,6 @@ pub(crate) fn oracle_renders(
         });
     }
     Ok(out)
-}
-
-/// The clip's true intrinsics of its first `n` frames, `[1, n, 3, 3]`, at the clip's size.
-fn intrinsics_tensor(clip: &HostClip, n: usize, device: &Device) -> Tensor<4> {
-    let data: Vec<f32> = clip.cameras[..n]
-        .iter()
-        .flat_map(|(_, k)| [k.fx, 0.0, k.cx, 0.0, k.fy, k.cy, 0.0, 0.0, 1.0])
-        .map(|v| v as f32)
-        .collect();
-    Tensor::from_data(TensorData::new(data, [1, n, 3, 3]), device)
 }
 
 #[cfg(test)]

@@ -145,3 +145,18 @@ pub fn extrapolate_constant_velocity(prev: &Mat4, last: &Mat4, steps: usize) -> 
     }
     out
 }
+
+/// The clip's true intrinsics of its first `n` frames, `[1, n, 3, 3]`, at the clip's size
+/// (the oracle renders' cameras, and the motion-gradient diagnostic's).
+pub fn clip_intrinsics_tensor(
+    clip: &envision4d_data::HostClip,
+    n: usize,
+    device: &Device,
+) -> Tensor<4> {
+    let data: Vec<f32> = clip.cameras[..n]
+        .iter()
+        .flat_map(|(_, k)| [k.fx, 0.0, k.cx, 0.0, k.fy, k.cy, 0.0, 0.0, 1.0])
+        .map(|v| v as f32)
+        .collect();
+    Tensor::from_data(TensorData::new(data, [1, n, 3, 3]), device)
+}

@@ -23,7 +23,7 @@
 use burn::tensor::{Device, Tensor, TensorData};
 use envision4d_data::{ClipDataset, ClipSpec, DatasetConfig, Fit, FitMode, HostClip, Layout};
 use envision4d_eval::motion::{exact_motions_and_cameras, MotionTruth, PredictedMotion};
-use envision4d_eval::pose_error::{extrinsics_tensor, host_extrinsics};
+use envision4d_eval::pose_error::{clip_intrinsics_tensor, extrinsics_tensor, host_extrinsics};
 use envision4d_model::adapter::Exclusion;
 use envision4d_model::checkpoint::{checkpoint_config, load_checkpoint, CheckpointKind};
 use envision4d_model::scene::{predict_scene_with, Motion};
@@ -143,14 +143,9 @@ fn clip_rows(
     let mut seen_from = extrinsics.clone();
     if true_cameras {
         seen_from.clone_from(&cameras);
-        let k: Vec<f32> = clip.cameras[..n]
-            .iter()
-            .flat_map(|(_, k)| [k.fx, 0.0, k.cx, 0.0, k.fy, k.cy, 0.0, 0.0, 1.0])
-            .map(|v| v as f32)
-            .collect();
         let bb = &mut scene.pred.backbone;
         bb.extrinsics = extrinsics_tensor(&cameras, device);
-        bb.intrinsics = Tensor::from_data(TensorData::new(k, [1, n, 3, 3]), device);
+        bb.intrinsics = clip_intrinsics_tensor(clip, n, device);
     }
     let shape = scene.adapted.motions.dims();
     let current: Vec<f32> = match toward {
