@@ -21,7 +21,7 @@
 //! Prints a Markdown table; exit 2 on bad input.
 
 use burn::tensor::{Device, Tensor, TensorData};
-use envision4d_data::{ClipDataset, ClipSpec, DatasetConfig, Fit, FitMode, HostClip, Layout};
+use envision4d_data::HostClip;
 use envision4d_eval::motion::{exact_motions_and_cameras, MotionTruth, PredictedMotion};
 use envision4d_eval::pose_error::{clip_intrinsics_tensor, extrinsics_tensor, host_extrinsics};
 use envision4d_model::adapter::Exclusion;
@@ -29,6 +29,8 @@ use envision4d_model::checkpoint::{checkpoint_config, load_checkpoint, Checkpoin
 use envision4d_model::scene::{predict_scene_with, Motion};
 use envision4d_model::Envision4d;
 use envision4d_splat::RasterConfig;
+use envision4d_train::config::{DataConfig, DataLayout, Purpose};
+use envision4d_train::dataset::open_dataset;
 use envision4d_train::motion_signal::{gradient_alignment, AlignmentInputs, AlignmentRow};
 use glam::DVec3;
 use std::path::PathBuf;
@@ -205,23 +207,9 @@ fn run(args: Args) -> Result<String, String> {
     let mut model = Envision4d::new(&cfg, &device);
     load_checkpoint(&mut model, &args.checkpoint, CheckpointKind::Full)
         .map_err(|e| e.to_string())?;
-    let ds = ClipDataset::open(
-        &args.data,
-        DatasetConfig {
-            layout: Layout::Synth { stride: 1 },
-            spec: ClipSpec {
-                context: cfg.context_frames,
-                future: cfg.future_frames,
-            },
-            fit: Fit {
-                mode: FitMode::Resize,
-                height: cfg.image_size[0],
-                width: cfg.image_size[1],
-            },
-            cache_clips: 0,
-        },
-    )
-    .map_err(|e| format!("{}: {e}", args.data.display()))?;
+    // Every window of the synthetic layout, fitted to the model's size, as evaluation opens it.
+    let data = DataConfig::new(DataLayout::Synth, args.data.clone(), 1);
+    let ds = open_dataset(&data, &cfg, &args.data, Purpose::Eval).map_err(|e| e.to_string())?;
     let mut rows: Vec<Vec<AlignmentRow>> = vec![];
     for i in 0..ds.len().min(args.clips) {
         let clip = ds.load(i).map_err(|e| format!("clip {i}: {e}"))?;
