@@ -12,13 +12,16 @@
 #   BATCH=2 WINDOWS="8" scripts/motion_capacity.sh    # two windows a step (the benchmark's)
 #   STEPS=2000 WINDOWS="all" scripts/motion_capacity.sh   # five times the steps
 #   SIZE=112x168 WINDOWS="1" scripts/motion_capacity.sh   # the shipped model at 112x168
+#   STEP=2 WINDOWS="all" scripts/motion_capacity.sh   # every other frame: twice the motion
 #
-# Data: the training and held-out clips of the motion benchmark's motion-constant preset
-# (the same seeds as scripts/motion_bench.sh, made here when missing). Windows: N = 1 is
+# Data: the motion benchmark's clips at SIZE (the same seeds as scripts/motion_bench.sh, made
+# here when missing). Windows: N = 1 is
 # clip 0's first window (stride 16); N >= 2 are the first N/2 clips, two windows each
 # (stride 8); "all" is every clip of all five motion types (160 windows, the benchmark's
-# training clips; held out, still the motion-constant clips). Each run is evaluated on its own windows (the fit) and on the 8 held-out
-# clips (generalisation); the table goes to runs/motion-capacity[-SIZE][-sSTEPS][-bB][-unfrozen]/table.md.
+# training clips). Each run is evaluated on its own windows (the fit), on the 8 held-out
+# motion-constant clips (generalisation) and on the 8 held-out clips of each other motion type
+# (does it read motion off the frames, or a type's prior?); the table goes to
+# runs/motion-capacity[-SIZE][-fSTEP][-sSTEPS][-bB][-unfrozen]/table.md.
 set -euo pipefail
 ROOT=$(cd "$(dirname "$0")/.." && pwd)
 BIN=${ENVISION4D:-${CARGO_TARGET_DIR:-$ROOT/target}/release/envision4d}
@@ -27,6 +30,9 @@ WINDOWS=${WINDOWS:-"1 8 32"}
 FREEZE=${FREEZE:-frozen}
 BATCH=${BATCH:-1}
 STEPS=${STEPS:-400}
+# Source frames between the model's frames (data.frame_step): 2 doubles the motion a mover
+# shows between the two context frames. The training clips have 16 frames, so at most 2.
+STEP=${STEP:-1}
 PRESET=motion-constant
 case "$FREEZE" in
   frozen) SUFFIX="" ;;
@@ -43,6 +49,11 @@ case "$STEPS" in
   ''|*[!0-9]*|0) echo "STEPS must be a whole number >= 1, not '$STEPS'" >&2; exit 2 ;;
   *) SUFFIX="-s$STEPS$SUFFIX" ;;
 esac
+case "$STEP" in
+  1) ;;
+  2) SUFFIX="-f$STEP$SUFFIX" ;;
+  *) echo "STEP must be 1 or 2 (a window of 8 frames every STEP-th of a 16-frame clip), not '$STEP'" >&2; exit 2 ;;
+esac
 case "$SIZE" in
   56x84) SUFFIX="$SUFFIX" ;;
   *x*) SUFFIX="-$SIZE$SUFFIX" ;;
@@ -51,14 +62,38 @@ esac
 DATA=$ROOT/data/motion-$SIZE
 RUNS=$ROOT/runs/motion-capacity$SUFFIX
 mkdir -p "$RUNS"
-# The motion benchmark's seeds for this preset (its first): 100 training, 2100 held out.
-if [ ! -d "$DATA/motion-train-$PRESET" ]; then
-  "$BIN" synth --out "$DATA/motion-train-$PRESET" --clips 16 --frames 16 --size "$SIZE" \
-    --preset "$PRESET" --seed 100
-fi
-if [ ! -d "$DATA/motion-heldout/$PRESET" ]; then
-  "$BIN" synth --out "$DATA/motion-heldout/$PRESET" --clips 8 --frames 8 --size "$SIZE" \
-    --preset "$PRESET" --seed 2100
+# Windows of 8 frames, every STEP-th source frame: SPAN source frames each; two per 16-frame
+# training clip are WSTRIDE apart. Held-out clips are 8 frames (the benchmark's) at STEP 1,
+# one window of SPAN frames otherwise (the same seeds).
+SPAN=$((7 * STEP + 1))
+WSTRIDE=$((16 - SPAN))
+if [ "$STEP" = 1 ]; then HELDOUT=motion-heldout; else HELDOUT=motion-heldout-${SPAN}f; fi
+# The motion benchmark's data at SIZE, with its seeds (scripts/motion_bench.sh: preset i has
+# training seed 100 + i, held-out seed 2100 + i). Every preset's held-out clips are made, for
+# the cross-type scores; training clips of the other presets only for WINDOWS=all.
+ALL_PRESETS="motion-constant motion-accelerating motion-turning motion-crossing motion-stop-and-go"
+case " $WINDOWS " in *" all "*) TRAIN_PRESETS=$ALL_PRESETS ;; *) TRAIN_PRESETS=$PRESET ;; esac
+i=0
+for p in $ALL_PRESETS; do
+  case " $TRAIN_PRESETS " in
+    *" $p "*)
+      [ -d "$DATA/motion-train-$p" ] || "$BIN" synth --out "$DATA/motion-train-$p" --clips 16 \
+        --frames 16 --size "$SIZE" --preset "$p" --seed $((100 + i)) ;;
+  esac
+  [ -d "$DATA/$HELDOUT/$p" ] || "$BIN" synth --out "$DATA/$HELDOUT/$p" --clips 8 \
+    --frames "$SPAN" --size "$SIZE" --preset "$p" --seed $((2100 + i))
+  i=$((i + 1))
+done
+# One training folder of every motion type, clip folders renamed by preset (as motion_bench.sh).
+if [ "$TRAIN_PRESETS" = "$ALL_PRESETS" ] && [ ! -d "$DATA/motion-train" ]; then
+  rm -rf "$DATA/motion-train.tmp"
+  mkdir -p "$DATA/motion-train.tmp"
+  for p in $ALL_PRESETS; do
+    for d in "$DATA/motion-train-$p"/clip_*; do
+      ln -s "$(cd "$d" && pwd)" "$DATA/motion-train.tmp/${p}_$(basename "$d")"
+    done
+  done
+  mv "$DATA/motion-train.tmp" "$DATA/motion-train"
 fi
 h=${SIZE%x*} w=${SIZE#*x}
 for n in $WINDOWS; do
@@ -69,14 +104,10 @@ for n in $WINDOWS; do
   run="$RUNS/w$n"
   if [ "$n" = all ]; then
     # Every motion type's training clips (the benchmark's training folder), two windows each.
-    if [ ! -d "$DATA/motion-train" ]; then
-      echo "no $DATA/motion-train: WINDOWS=all reads the motion benchmark's training clips (BASE=shipped scripts/motion_bench.sh makes them)" >&2
-      exit 2
-    fi
-    stride=8
+    stride=$WSTRIDE
     [ -e "$run/data" ] || { mkdir -p "$run"; ln -s "$DATA/motion-train" "$run/data"; }
   else
-    if [ "$n" = 1 ]; then clips=1 stride=16; else clips=$(((n + 1) / 2)) stride=8; fi
+    if [ "$n" = 1 ]; then clips=1 stride=16; else clips=$(((n + 1) / 2)) stride=$WSTRIDE; fi
   fi
   if [ "$n" != all ] && [ ! -d "$run/data" ]; then
     mkdir -p "$run/data.tmp"
@@ -88,7 +119,7 @@ for n in $WINDOWS; do
   sed -e "s#^root = .*#root = \"$run/data\"#" \
       -e "s#^out_dir = .*#out_dir = \"$run\"#" \
       -e "s#^image_size = .*#image_size = [$h, $w]#" \
-      -e "s#^stride = .*#stride = $stride#" \
+      -e "s#^stride = .*#stride = $stride\nframe_step = $STEP#" \
       -e "s#^batch_size = .*#batch_size = $BATCH#" \
       -e "s#^iterations = .*#iterations = $STEPS#" \
       -e "s#^init_checkpoint = .*#init_checkpoint = \"$ROOT/models/envision4d-synth-tiny.safetensors\"#" \
@@ -103,15 +134,26 @@ for n in $WINDOWS; do
     "$BIN" train --config "$run.toml" "${resume[@]}"
   fi
   [ -f "$run/eval-fit/metrics.json" ] || "$BIN" eval --checkpoint "$run/model.safetensors" \
-    --data "$run/data" --stride "$stride" --out "$run/eval-fit" > "$run/eval-fit.txt"
-  [ -f "$run/eval-heldout/metrics.json" ] || "$BIN" eval --checkpoint "$run/model.safetensors" \
-    --data "$DATA/motion-heldout/$PRESET" --out "$run/eval-heldout" > "$run/eval-heldout.txt"
+    --data "$run/data" --stride "$stride" --frame-step "$STEP" --out "$run/eval-fit" \
+    > "$run/eval-fit.txt"
+  # Held out: the trained preset's clips (eval-heldout), then every other type's
+  # (eval-heldout-<preset>): a model that reads motion off the frames scores on all of them.
+  for p in $ALL_PRESETS; do
+    ev=eval-heldout
+    [ "$p" = "$PRESET" ] || ev="eval-heldout-$p"
+    [ -f "$run/$ev/metrics.json" ] || "$BIN" eval --checkpoint "$run/model.safetensors" \
+      --data "$DATA/$HELDOUT/$p" --frame-step "$STEP" --out "$run/$ev" > "$run/$ev.txt"
+  done
 done
 python3 - "$RUNS" $WINDOWS <<'PY' | tee "$RUNS/table.md"
 import json, os, sys
 runs, windows = sys.argv[1], sys.argv[2:]
-print("| windows | flow term, first / last 20 logged steps | fit: rel EPE moving | fit: static EPE (m) | fit: mask IoU | held out: rel EPE moving | held out: static EPE (m) |")
-print("|---|---|---|---|---|---|---|")
+others = ["motion-accelerating", "motion-turning", "motion-crossing", "motion-stop-and-go"]
+print("| windows | flow term, first / last 20 logged steps | fit: rel EPE moving | fit: static EPE (m) "
+      "| fit: mask IoU | held out: rel EPE moving | held out: static EPE (m) | "
+      + " | ".join(f"held out {o[len('motion-'):]}: rel EPE moving" for o in others) + " |")
+print("|---" * (7 + len(others)) + "|")
+motion = lambda d, ev: json.load(open(os.path.join(d, ev, "metrics.json")))["mean"]["motion"]
 for n in windows:
     d = os.path.join(runs, f"w{n}")
     flows = [r["flow"] for r in map(json.loads, open(os.path.join(d, "log.jsonl")))
@@ -119,9 +161,10 @@ for n in windows:
     m = lambda xs: sum(xs) / len(xs)
     cells = [n, f"{m(flows[:20]):.3f} / {m(flows[-20:]):.3f}"]
     for ev in ("eval-fit", "eval-heldout"):
-        mo = json.load(open(os.path.join(d, ev, "metrics.json")))["mean"]["motion"]
+        mo = motion(d, ev)
         cells += [f"{mo['rel_epe_dynamic']:.3f}", f"{mo['epe_static']:.3f}"]
         if ev == "eval-fit":
             cells.append(f"{mo['mask_iou']:.3f}")
+    cells += [f"{motion(d, 'eval-heldout-' + o)['rel_epe_dynamic']:.3f}" for o in others]
     print("| " + " | ".join(map(str, cells)) + " |")
 PY

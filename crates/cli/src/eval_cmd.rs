@@ -93,6 +93,11 @@ pub struct EvalArgs {
     /// --data alone; a clip of exactly T_c + T_f frames has one window whatever S is.
     #[arg(long, value_parser = clap::value_parser!(u64).range(1..))]
     stride: Option<u64>,
+    /// Take every K-th source frame into a window (K = 2: a 10 Hz clip at 5 Hz, motion
+    /// between the model's frames twice as large). Default: the config's data.frame_step, or
+    /// 1 with --data alone.
+    #[arg(long, value_parser = clap::value_parser!(u64).range(1..))]
+    frame_step: Option<u64>,
     /// A named protocol (docs/EVAL.md): `release` scores the 4 future frames of the official
     /// release's Waymo clips (num_frames 6), `paper` the 2 of §4.1 (T_c = T_f = 2). A
     /// checkpoint that predicts more future frames predicts only those (as `--future`).
@@ -210,6 +215,9 @@ fn resolve(args: &EvalArgs) -> Result<Setup> {
     }
     if let Some(stride) = args.stride {
         data.stride = stride as usize;
+    }
+    if let Some(step) = args.frame_step {
+        data.frame_step = step as usize;
     }
     if !data.root.is_dir() {
         return Err(InputError(format!("{}: data folder not found", data.root.display())).into());

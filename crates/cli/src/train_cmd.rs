@@ -209,6 +209,10 @@ fn describe_data(cfg: &envision4d_train::TrainConfig) -> Result<()> {
         ),
         _ => format!(", stride {}", data.stride),
     };
+    let split = match data.frame_step {
+        1 => split,
+        k => format!("{split}, frame_step {k} (every {k} source frames)"),
+    };
     println!(
         "data: {} (layout {:?}{split})",
         data.root.display(),

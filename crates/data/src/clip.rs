@@ -11,14 +11,19 @@ use std::path::PathBuf;
 pub struct ClipSpec {
     pub context: usize,
     pub future: usize,
+    /// Source frames from one clip frame to the next: 1 takes consecutive frames, 2 every
+    /// other one (a 10 Hz recording played at 5 Hz, so everything moves twice as far between
+    /// the model's frames).
+    pub frame_step: usize,
 }
 
 impl Default for ClipSpec {
-    /// The paper's T_c = T_f = 2 (spec §1: N = 4).
+    /// The paper's T_c = T_f = 2 (spec §1: N = 4), consecutive frames.
     fn default() -> Self {
         ClipSpec {
             context: 2,
             future: 2,
+            frame_step: 1,
         }
     }
 }
@@ -27,6 +32,17 @@ impl ClipSpec {
     pub fn num_frames(&self) -> usize {
         self.context + self.future
     }
+    /// Source frames a window covers, first to last: `(num_frames - 1) · frame_step + 1`.
+    pub fn span(&self) -> usize {
+        self.num_frames()
+            .saturating_sub(1)
+            .saturating_mul(self.frame_step)
+            .saturating_add(1)
+    }
+    /// Offsets of the window's frames from its first source frame.
+    pub fn offsets(&self) -> impl Iterator<Item = usize> + '_ {
+        (0..self.num_frames()).map(move |k| k * self.frame_step)
+    }
     pub fn validate(&self) -> Result<()> {
         if self.context == 0 {
             return Err(DataError::config(
@@ -34,6 +50,9 @@ impl ClipSpec {
                 0,
                 "need at least one context frame",
             ));
+        }
+        if self.frame_step == 0 {
+            return Err(DataError::config("frame_step", 0, "must be at least 1"));
         }
         Ok(())
     }

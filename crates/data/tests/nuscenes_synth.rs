@@ -31,6 +31,7 @@ fn open(root: &Path, split: &str) -> Result<ClipDataset, DataError> {
             spec: ClipSpec {
                 context: 2,
                 future: 2,
+                frame_step: 1,
             },
             fit: Fit {
                 mode: FitMode::Resize,

@@ -19,6 +19,7 @@ fn dataset_config(fit: (usize, usize)) -> DatasetConfig {
         spec: ClipSpec {
             context: 1,
             future: FRAMES - 1,
+            frame_step: 1,
         },
         fit: Fit {
             mode: FitMode::Resize,
@@ -153,4 +154,48 @@ fn truth_follows_the_frame_grid() {
         .iter()
         .all(|&id| id == 0 || t.objects.iter().any(|o| o.id == id)));
     assert!(t.points.iter().any(Option::is_some));
+}
+
+/// Guards `frame_step`: a window of every other frame reads frames 0, 2, 4 with *their*
+/// cameras and object poses (not 0, 1, 2's), so the pair flow of its frames 0 → 1 is the
+/// clip's 0 → 2 flow; a step whose span exceeds the clip gives no window, an error naming
+/// the frames needed.
+#[test]
+fn frame_step_windows_take_every_kth_frame_with_its_truth() {
+    let dir = tempfile::tempdir().unwrap();
+    let (raw, full) = written_clip(dir.path(), Preset::Urban, 7, (H, W));
+    let stepped = |step: usize, frames: usize| DatasetConfig {
+        spec: ClipSpec {
+            context: 1,
+            future: frames - 1,
+            frame_step: step,
+        },
+        ..dataset_config((H, W))
+    };
+    let ds = ClipDataset::open(dir.path(), stepped(2, 3)).unwrap();
+    assert_eq!(ds.len(), 1, "5 frames hold one window spanning 5");
+    assert_eq!(ds.entries()[0].frame_numbers, vec![0, 2, 4]);
+    let clip = ds.load(0).unwrap();
+    assert_eq!(clip.frame_paths[1], raw.frame_paths[2]);
+    assert_eq!(clip.gt[1].world_to_camera, raw.gt[2].world_to_camera);
+    let host = HostClip::from_clip(&clip).unwrap();
+    let (a, b) = (
+        host.motion_truth[0].as_ref().unwrap(),
+        host.motion_truth[1].as_ref().unwrap(),
+    );
+    let want = full.motion_truth[0]
+        .as_ref()
+        .unwrap()
+        .flow_to(&full.motion_truth[2].as_ref().unwrap().objects);
+    let got = a.flow_to(&b.objects);
+    assert_eq!(got, want);
+    assert!(
+        got.iter().flatten().any(|f| f.norm() > 1e-3),
+        "no motion to test"
+    );
+
+    let err = ClipDataset::open(dir.path(), stepped(3, 3)).unwrap_err();
+    assert!(err.to_string().contains("no usable clips"), "{err}");
+    let err = ClipDataset::open(dir.path(), stepped(0, 3)).unwrap_err();
+    assert!(err.to_string().contains("frame_step"), "{err}");
 }

@@ -63,6 +63,7 @@ fn dataset_config() -> DatasetConfig {
         spec: ClipSpec {
             context: 2,
             future: 2,
+            frame_step: 1,
         },
         fit: Fit {
             mode: FitMode::Resize,

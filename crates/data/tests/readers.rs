@@ -23,6 +23,7 @@ fn config(layout: Layout, h: usize, w: usize) -> DatasetConfig {
         spec: ClipSpec {
             context: 2,
             future: 2,
+            frame_step: 1,
         },
         fit: Fit {
             mode: FitMode::Resize,

@@ -35,6 +35,7 @@ fn open_with(root: &Path, lidar: bool) -> ClipDataset {
             spec: ClipSpec {
                 context: 2,
                 future: 2,
+                frame_step: 1,
             },
             fit: Fit {
                 mode: FitMode::Resize,

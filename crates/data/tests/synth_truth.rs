@@ -29,6 +29,7 @@ fn open(dir: &Path, frames: usize) -> std::sync::Arc<envision4d_data::Clip> {
         spec: ClipSpec {
             context: 1,
             future: frames - 1,
+            frame_step: 1,
         },
         fit: Fit {
             mode: FitMode::Resize,
@@ -348,6 +349,7 @@ fn missing_frame_never_shifts_ground_truth() {
         spec: ClipSpec {
             context: 1,
             future: 1,
+            frame_step: 1,
         },
         fit: Fit {
             mode: FitMode::Resize,
@@ -368,6 +370,7 @@ fn missing_frame_never_shifts_ground_truth() {
             spec: ClipSpec {
                 context: 1,
                 future: 1,
+                frame_step: 1,
             },
             fit: Fit {
                 mode: FitMode::Resize,

@@ -247,6 +247,11 @@ pub struct DataConfig {
     /// Frames between consecutive clip windows.
     #[serde(default = "one")]
     pub stride: usize,
+    /// Source frames between a window's frames: 1 (the default) consecutive, 2 every other
+    /// frame (motion between the model's frames twice as large; the time embedding still
+    /// counts window frames).
+    #[serde(default = "one", skip_serializing_if = "is_one")]
+    pub frame_step: usize,
     /// Playback augmentation of training windows (`[data.augment]`); off by default.
     #[serde(default)]
     pub augment: Augment,
@@ -284,6 +289,7 @@ impl DataConfig {
             layout,
             root,
             stride,
+            frame_step: 1,
             augment: Augment::default(),
             split: None,
             allow_eval_split: false,
@@ -333,6 +339,10 @@ pub struct Augment {
 
 fn one() -> usize {
     1
+}
+
+fn is_one(v: &usize) -> bool {
+    *v == 1
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

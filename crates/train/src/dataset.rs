@@ -42,6 +42,7 @@ pub fn open_dataset(
         spec: ClipSpec {
             context: model.context_frames,
             future: model.future_frames,
+            frame_step: data.frame_step,
         },
         fit: Fit {
             mode: FitMode::Resize,

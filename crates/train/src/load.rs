@@ -344,6 +344,9 @@ pub fn validate(cfg: &TrainConfig) -> Result<()> {
     if cfg.data.stride == 0 {
         return Err(TrainError::invalid("data.stride", 0, "must be >= 1"));
     }
+    if cfg.data.frame_step == 0 {
+        return Err(TrainError::invalid("data.frame_step", 0, "must be >= 1"));
+    }
     let a = &cfg.data.augment;
     for (key, v) in [
         ("data.augment.reverse", a.reverse),

@@ -47,12 +47,12 @@ pub fn scan(root: &Path, spec: &ClipSpec, stride: usize) -> Result<Scan> {
                 .push(DataError::EmptyFolder { path: dir }.to_string());
             continue;
         }
-        let starts = window_starts(frames.len(), spec.num_frames(), stride);
+        let starts = window_starts(frames.len(), spec.span(), stride);
         if starts.is_empty() {
             let err = DataError::TooFewFrames {
                 path: dir,
                 found: frames.len(),
-                needed: spec.num_frames(),
+                needed: spec.span(),
             };
             scan.skipped.push(err.to_string());
             continue;
@@ -61,8 +61,8 @@ pub fn scan(root: &Path, spec: &ClipSpec, stride: usize) -> Result<Scan> {
             scan.entries.push(ClipEntry {
                 id: format!("{name}@{s}"),
                 group: name.clone(),
-                frames: frames[s..s + spec.num_frames()].to_vec(),
-                frame_numbers: (s..s + spec.num_frames()).map(|k| k as i64).collect(),
+                frames: spec.offsets().map(|o| frames[s + o].clone()).collect(),
+                frame_numbers: spec.offsets().map(|o| (s + o) as i64).collect(),
                 gt: GtSource::None,
             });
         }

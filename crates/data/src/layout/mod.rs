@@ -81,7 +81,8 @@ pub(crate) fn read_dir_sorted(dir: &Path) -> Result<Vec<PathBuf>> {
     Ok(out)
 }
 
-/// Start indices of windows of `len` frames every `stride` frames over `n` frames.
+/// Start indices of windows spanning `len` frames (`ClipSpec::span`) every `stride` frames
+/// over `n` frames.
 pub fn window_starts(n: usize, len: usize, stride: usize) -> Vec<usize> {
     if len == 0 || stride == 0 || n < len {
         return Vec::new();

@@ -230,12 +230,12 @@ fn scene_clips(
         ));
         token = sample.next.clone();
     }
-    let starts = window_starts(frames.len(), spec.num_frames(), cfg.stride);
+    let starts = window_starts(frames.len(), spec.span(), cfg.stride);
     if starts.is_empty() {
         return Err(DataError::TooFewFrames {
             path: PathBuf::from(format!("{}/{}", dir.display(), scene.name)),
             found: frames.len(),
-            needed: spec.num_frames(),
+            needed: spec.span(),
         });
     }
     let cap = cfg.windows_per_scene.unwrap_or(usize::MAX);
@@ -244,12 +244,12 @@ fn scene_clips(
         .take(cap)
         .enumerate()
         .map(|(k, s)| {
-            let window = &frames[s..s + spec.num_frames()];
+            let window: Vec<_> = spec.offsets().map(|o| &frames[s + o]).collect();
             ClipEntry {
                 id: format!("{}/{}#{k}", cfg.split, scene.name),
                 group: format!("{}/{}", cfg.split, scene.name),
                 frames: window.iter().map(|(p, _)| p.clone()).collect(),
-                frame_numbers: (s..s + spec.num_frames()).map(|k| k as i64).collect(),
+                frame_numbers: spec.offsets().map(|o| (s + o) as i64).collect(),
                 gt: GtSource::NuScenes {
                     frames: window.iter().map(|(_, g)| g.clone()).collect(),
                 },

@@ -137,25 +137,28 @@ pub fn scan(root: &Path, spec: &ClipSpec, stride: usize) -> Result<Scan> {
             ));
             continue;
         }
-        let starts = window_starts(numbered.len(), spec.num_frames(), stride);
+        let starts = window_starts(numbered.len(), spec.span(), stride);
         if starts.is_empty() {
             let err = DataError::TooFewFrames {
                 path: dir.join(RGB_DIR),
                 found: frames.len(),
-                needed: spec.num_frames(),
+                needed: spec.span(),
             };
             scan.skipped.push(err.to_string());
         }
         for s in starts {
-            let window = &numbered[s..s + spec.num_frames()];
-            let first = window[0].0;
-            if window.iter().enumerate().any(|(k, (t, _))| *t != first + k) {
+            // The window's source frames must be consecutive in the clip (no frame missing in
+            // between), taken every `frame_step`-th.
+            let span = &numbered[s..s + spec.span()];
+            let first = span[0].0;
+            if span.iter().enumerate().any(|(k, (t, _))| *t != first + k) {
                 scan.skipped.push(format!(
                     "{}: frames {first}.. are not consecutive; skipping that window",
                     dir.join(RGB_DIR).display()
                 ));
                 continue;
             }
+            let window: Vec<_> = spec.offsets().map(|o| &span[o]).collect();
             scan.entries.push(ClipEntry {
                 id: format!("{name}@{s}"),
                 group: name.clone(),

@@ -77,11 +77,16 @@ pub fn scan(root: &Path, spec: &ClipSpec, cfg: &WaymoConfig) -> Result<Scan> {
         return Err(DataError::config("interval", 0, "must be at least 1"));
     }
     // The official clip is `interval` frames long; a longer clip would read into the next.
-    if !cfg.overlapping && spec.num_frames() > cfg.interval {
+    if !cfg.overlapping && spec.span() > cfg.interval {
         return Err(DataError::config(
             "num_frames",
-            spec.num_frames(),
-            format!("must not exceed the clip interval {}", cfg.interval),
+            spec.span(),
+            format!(
+                "source frames a window spans (frames {}, frame_step {}) must not exceed the clip interval {}",
+                spec.num_frames(),
+                spec.frame_step,
+                cfg.interval
+            ),
         ));
     }
     let split_dir = root.join(&cfg.split);
@@ -140,7 +145,7 @@ fn scene_clips(
         .clips_per_scene
         .saturating_sub(1)
         .saturating_mul(cfg.interval)
-        .saturating_add(spec.num_frames())
+        .saturating_add(spec.span())
         .min(i64::MAX as usize) as i64;
     let timesteps: Vec<i64> = (t_min..t_max.min(t_min.saturating_add(reach))).collect();
     let path_of = |t: i64| {
@@ -160,10 +165,10 @@ fn scene_clips(
     let mut out = Vec::new();
     for k in 0..cfg.clips_per_scene {
         let start = k.saturating_mul(cfg.interval);
-        if start.saturating_add(spec.num_frames()) > timesteps.len() {
+        if start.saturating_add(spec.span()) > timesteps.len() {
             break;
         }
-        let ts = timesteps[start..start + spec.num_frames()].to_vec();
+        let ts: Vec<i64> = spec.offsets().map(|o| timesteps[start + o]).collect();
         out.push(ClipEntry {
             id: format!("{}/{name}#{k}", cfg.split),
             group: format!("{}/{name}", cfg.split),
@@ -185,7 +190,7 @@ fn scene_clips(
         return Err(DataError::TooFewFrames {
             path: images,
             found: timesteps.len(),
-            needed: spec.num_frames(),
+            needed: spec.span(),
         });
     }
     Ok(out)

@@ -1,7 +1,7 @@
 //! Playback augmentation: reversed and held windows keep frames, cameras and depth paired,
-//! and the draws are a function of (seed, sample).
+//! and the draws are a function of (seed, sample); the `[data]` table's window keys.
 
-use crate::common::{config_path, synth_clip, H, W};
+use crate::common::{config_path, synth_clip, write_synth_dataset, H, W};
 use envision4d_train::augment::{apply, playback, Playback};
 use envision4d_train::batch::pose_encodings;
 use envision4d_train::config::Augment;
@@ -95,5 +95,34 @@ fn augment_config_errors_name_the_key() {
     assert!(
         err.contains("data.augment") && err.contains("at most 1"),
         "{err}"
+    );
+}
+
+/// Guards `[data] frame_step` being parsed but not reaching the windows (a run that believes
+/// it sees twice the motion and reads consecutive frames), and zero being accepted.
+#[test]
+fn frame_step_reaches_the_windows_and_zero_is_refused() {
+    use envision4d_train::config::Purpose;
+    let text = std::fs::read_to_string(config_path("synth-tiny.toml")).unwrap();
+    let with = |v: &str| text.replace("stride = 2", &format!("stride = 1\nframe_step = {v}"));
+    let parse = |t: String| envision4d_train::parse(&t, Path::new("x.toml"));
+    let err = parse(with("0")).unwrap_err().to_string();
+    assert!(err.contains("data.frame_step"), "{err}");
+    let mut cfg = parse(with("2")).unwrap();
+    assert_eq!(cfg.data.frame_step, 2);
+    let dir = tempfile::tempdir().unwrap();
+    write_synth_dataset(dir.path(), 1, 9);
+    cfg.model.future_frames = 2;
+    let ds =
+        envision4d_train::dataset::open_dataset(&cfg.data, &cfg.model, dir.path(), Purpose::Train)
+            .unwrap();
+    let numbers: Vec<_> = ds
+        .entries()
+        .iter()
+        .map(|e| e.frame_numbers.clone())
+        .collect();
+    assert_eq!(
+        numbers,
+        vec![vec![0, 2, 4, 6], vec![1, 3, 5, 7], vec![2, 4, 6, 8]]
     );
 }
