@@ -76,6 +76,67 @@ fn storm_scene_poses_decode_to_the_truth() {
     }
 }
 
+/// Guards `frame_step` on the Waymo reader: timesteps 0..5 hold no window of 4 every other
+/// timestep (it spans 7), so the scene is skipped, not read with consecutive timesteps; with
+/// a window of 2 every other timestep, the frames are timesteps (0, 2), (1, 3), (2, 4) with
+/// their own cameras.
+#[test]
+fn storm_frame_step_takes_every_other_timestep() {
+    let truth = clip();
+    let dir = tempfile::tempdir().unwrap();
+    write_storm_scene(&dir.path().join("training/000"), &truth).unwrap();
+    let err = ClipDataset::open(
+        dir.path(),
+        DatasetConfig {
+            layout: Layout::Waymo(WaymoConfig::training("training", 1, None)),
+            spec: ClipSpec {
+                context: 2,
+                future: 2,
+                frame_step: 2,
+            },
+            ..DatasetConfig::default()
+        },
+    );
+    assert!(err.is_err(), "a window spanning 7 timesteps read from 5");
+    let ds = ClipDataset::open(
+        dir.path(),
+        DatasetConfig {
+            layout: Layout::Waymo(WaymoConfig::training("training", 1, None)),
+            spec: ClipSpec {
+                context: 1,
+                future: 1,
+                frame_step: 2,
+            },
+            fit: Fit {
+                mode: FitMode::Resize,
+                height: H,
+                width: W,
+            },
+            cache_clips: 0,
+        },
+    )
+    .unwrap();
+    let numbers: Vec<_> = ds
+        .entries()
+        .iter()
+        .map(|e| e.frame_numbers.clone())
+        .collect();
+    assert_eq!(numbers, vec![vec![0, 2], vec![1, 3], vec![2, 4]]);
+    let c = ds.load(2).unwrap();
+    let (got, want) = (
+        c.gt[1].world_to_camera.unwrap(),
+        truth.cameras[4].world_to_camera,
+    );
+    for r in 0..4 {
+        for col in 0..4 {
+            assert!(
+                (got.0[r][col] - want.0[r][col]).abs() < 1e-9,
+                "entry ({r},{col})"
+            );
+        }
+    }
+}
+
 /// Guards LiDAR depth on the frame grid: points land on the pixel they were taken from with
 /// its exact z-depth; without `lidar/` the quarter-grid means land at the cell centres; the
 /// training reader reads neither.
