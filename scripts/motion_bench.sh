@@ -129,28 +129,9 @@ train() {
 }
 
 echo "== data ($SIZE, $FRAMES frames)"
-i=0
-for p in $PRESETS; do
-  if [ ! -d "$DATA/motion-train-$p" ]; then
-    "$BIN" synth --out "$DATA/motion-train-$p" --clips "$TRAIN_CLIPS" --frames "$FRAMES" \
-      --size "$SIZE" --preset "$p" --seed $((100 + i))
-  fi
-  if [ ! -d "$DATA/motion-heldout/$p" ]; then
-    "$BIN" synth --out "$DATA/motion-heldout/$p" --clips "$HELDOUT_CLIPS" --frames 8 \
-      --size "$SIZE" --preset "$p" --seed $((2100 + i))
-  fi
-  i=$((i + 1))
-done
-# One training folder of every motion type (clip folders renamed by preset).
-if [ ! -d "$DATA/motion-train" ]; then
-  mkdir -p "$DATA/motion-train.tmp"
-  for p in $PRESETS; do
-    for d in "$DATA/motion-train-$p"/clip_*; do
-      ln -s "$(cd "$d" && pwd)" "$DATA/motion-train.tmp/${p}_$(basename "$d")"
-    done
-  done
-  mv "$DATA/motion-train.tmp" "$DATA/motion-train"
-fi
+# Every preset's training and held-out clips, and one training folder of every motion type.
+BIN="$BIN" DATA="$DATA" SIZE="$SIZE" PRESETS="$PRESETS" TRAIN_CLIPS="$TRAIN_CLIPS" \
+  FRAMES="$FRAMES" HELDOUT_CLIPS="$HELDOUT_CLIPS" "$(dirname "$0")/motion_data.sh"
 
 if [ "$BASE" = backbone ]; then
   echo "== stage 1: backbone"

@@ -68,33 +68,13 @@ mkdir -p "$RUNS"
 SPAN=$((7 * STEP + 1))
 WSTRIDE=$((16 - SPAN))
 if [ "$STEP" = 1 ]; then HELDOUT=motion-heldout; else HELDOUT=motion-heldout-${SPAN}f; fi
-# The motion benchmark's data at SIZE, with its seeds (scripts/motion_bench.sh: preset i has
-# training seed 100 + i, held-out seed 2100 + i). Every preset's held-out clips are made, for
-# the cross-type scores; training clips of the other presets only for WINDOWS=all.
+# The motion benchmark's data at SIZE, with its seeds (scripts/motion_data.sh). Every
+# preset's held-out clips are made, for the cross-type scores; training clips of the other
+# presets only for WINDOWS=all.
 ALL_PRESETS="motion-constant motion-accelerating motion-turning motion-crossing motion-stop-and-go"
 case " $WINDOWS " in *" all "*) TRAIN_PRESETS=$ALL_PRESETS ;; *) TRAIN_PRESETS=$PRESET ;; esac
-i=0
-for p in $ALL_PRESETS; do
-  case " $TRAIN_PRESETS " in
-    *" $p "*)
-      [ -d "$DATA/motion-train-$p" ] || "$BIN" synth --out "$DATA/motion-train-$p" --clips 16 \
-        --frames 16 --size "$SIZE" --preset "$p" --seed $((100 + i)) ;;
-  esac
-  [ -d "$DATA/$HELDOUT/$p" ] || "$BIN" synth --out "$DATA/$HELDOUT/$p" --clips 8 \
-    --frames "$SPAN" --size "$SIZE" --preset "$p" --seed $((2100 + i))
-  i=$((i + 1))
-done
-# One training folder of every motion type, clip folders renamed by preset (as motion_bench.sh).
-if [ "$TRAIN_PRESETS" = "$ALL_PRESETS" ] && [ ! -d "$DATA/motion-train" ]; then
-  rm -rf "$DATA/motion-train.tmp"
-  mkdir -p "$DATA/motion-train.tmp"
-  for p in $ALL_PRESETS; do
-    for d in "$DATA/motion-train-$p"/clip_*; do
-      ln -s "$(cd "$d" && pwd)" "$DATA/motion-train.tmp/${p}_$(basename "$d")"
-    done
-  done
-  mv "$DATA/motion-train.tmp" "$DATA/motion-train"
-fi
+BIN="$BIN" DATA="$DATA" SIZE="$SIZE" PRESETS="$ALL_PRESETS" TRAIN_PRESETS="$TRAIN_PRESETS" \
+  HELDOUT="$HELDOUT" HELDOUT_FRAMES="$SPAN" "$ROOT/scripts/motion_data.sh"
 h=${SIZE%x*} w=${SIZE#*x}
 for n in $WINDOWS; do
   case "$n" in

@@ -85,37 +85,31 @@ fn storm_frame_step_takes_every_other_timestep() {
     let truth = clip();
     let dir = tempfile::tempdir().unwrap();
     write_storm_scene(&dir.path().join("training/000"), &truth).unwrap();
-    let err = ClipDataset::open(
-        dir.path(),
-        DatasetConfig {
-            layout: Layout::Waymo(WaymoConfig::training("training", 1, None)),
-            spec: ClipSpec {
-                context: 2,
-                future: 2,
-                frame_step: 2,
+    // Windows of `frames` frames, every other timestep, at the frame size.
+    let every_other = |frames: usize| {
+        ClipDataset::open(
+            dir.path(),
+            DatasetConfig {
+                layout: Layout::Waymo(WaymoConfig::training("training", 1, None)),
+                spec: ClipSpec {
+                    context: 1,
+                    future: frames - 1,
+                    frame_step: 2,
+                },
+                fit: Fit {
+                    mode: FitMode::Resize,
+                    height: H,
+                    width: W,
+                },
+                cache_clips: 0,
             },
-            ..DatasetConfig::default()
-        },
+        )
+    };
+    assert!(
+        every_other(4).is_err(),
+        "a window spanning 7 timesteps read from 5"
     );
-    assert!(err.is_err(), "a window spanning 7 timesteps read from 5");
-    let ds = ClipDataset::open(
-        dir.path(),
-        DatasetConfig {
-            layout: Layout::Waymo(WaymoConfig::training("training", 1, None)),
-            spec: ClipSpec {
-                context: 1,
-                future: 1,
-                frame_step: 2,
-            },
-            fit: Fit {
-                mode: FitMode::Resize,
-                height: H,
-                width: W,
-            },
-            cache_clips: 0,
-        },
-    )
-    .unwrap();
+    let ds = every_other(2).unwrap();
     let numbers: Vec<_> = ds
         .entries()
         .iter()
