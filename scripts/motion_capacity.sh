@@ -13,6 +13,7 @@
 #   STEPS=2000 WINDOWS="all" scripts/motion_capacity.sh   # five times the steps
 #   SIZE=112x168 WINDOWS="1" scripts/motion_capacity.sh   # the shipped model at 112x168
 #   STEP=2 WINDOWS="all" scripts/motion_capacity.sh   # every other frame: twice the motion
+#   CONTEXT=3 WINDOWS="all" scripts/motion_capacity.sh  # three context frames instead of two
 #
 # Data: the motion benchmark's clips at SIZE (the same seeds as scripts/motion_bench.sh, made
 # here when missing). Windows: N = 1 is
@@ -21,7 +22,7 @@
 # training clips). Each run is evaluated on its own windows (the fit), on the 8 held-out
 # motion-constant clips (generalisation) and on the 8 held-out clips of each other motion type
 # (does it read motion off the frames, or a type's prior?); the table goes to
-# runs/motion-capacity[-SIZE][-fSTEP][-sSTEPS][-bB][-unfrozen]/table.md.
+# runs/motion-capacity[-SIZE][-cCONTEXT][-fSTEP][-sSTEPS][-bB][-unfrozen]/table.md.
 set -euo pipefail
 ROOT=$(cd "$(dirname "$0")/.." && pwd)
 BIN=${ENVISION4D:-${CARGO_TARGET_DIR:-$ROOT/target}/release/envision4d}
@@ -31,8 +32,10 @@ FREEZE=${FREEZE:-frozen}
 BATCH=${BATCH:-1}
 STEPS=${STEPS:-400}
 # Source frames between the model's frames (data.frame_step): 2 doubles the motion a mover
-# shows between the two context frames. The training clips have 16 frames, so at most 2.
+# shows between the two context frames (the window must fit twice in a 16-frame clip).
 STEP=${STEP:-1}
+# Context frames T_c (model.context_frames; T_f stays the shipped model's 6).
+CONTEXT=${CONTEXT:-2}
 PRESET=motion-constant
 case "$FREEZE" in
   frozen) SUFFIX="" ;;
@@ -51,8 +54,13 @@ case "$STEPS" in
 esac
 case "$STEP" in
   1) ;;
-  2) SUFFIX="-f$STEP$SUFFIX" ;;
-  *) echo "STEP must be 1 or 2 (a window of 8 frames every STEP-th of a 16-frame clip), not '$STEP'" >&2; exit 2 ;;
+  ''|*[!0-9]*|0) echo "STEP must be a whole number >= 1, not '$STEP'" >&2; exit 2 ;;
+  *) SUFFIX="-f$STEP$SUFFIX" ;;
+esac
+case "$CONTEXT" in
+  2) ;;
+  ''|*[!0-9]*|0) echo "CONTEXT must be a whole number >= 1, not '$CONTEXT'" >&2; exit 2 ;;
+  *) SUFFIX="-c$CONTEXT$SUFFIX" ;;
 esac
 case "$SIZE" in
   56x84) SUFFIX="$SUFFIX" ;;
@@ -62,12 +70,16 @@ esac
 DATA=$ROOT/data/motion-$SIZE
 RUNS=$ROOT/runs/motion-capacity$SUFFIX
 mkdir -p "$RUNS"
-# Windows of 8 frames, every STEP-th source frame: SPAN source frames each; two per 16-frame
-# training clip are WSTRIDE apart. Held-out clips are 8 frames (the benchmark's) at STEP 1,
-# one window of SPAN frames otherwise (the same seeds).
-SPAN=$((7 * STEP + 1))
+# Windows of CONTEXT + 6 frames, every STEP-th source frame: SPAN source frames each; two per
+# 16-frame training clip are WSTRIDE apart. Held-out clips are 8 frames (the benchmark's) for
+# a window of 8, one window of SPAN frames otherwise (the same seeds).
+SPAN=$(((CONTEXT + 5) * STEP + 1))
+if [ "$SPAN" -gt 15 ]; then
+  echo "a window of $((CONTEXT + 6)) frames taken every $STEP source frames spans $SPAN of the 16 training frames; two windows per clip need at most 15" >&2
+  exit 2
+fi
 WSTRIDE=$((16 - SPAN))
-if [ "$STEP" = 1 ]; then HELDOUT=motion-heldout; else HELDOUT=motion-heldout-${SPAN}f; fi
+if [ "$SPAN" = 8 ]; then HELDOUT=motion-heldout; else HELDOUT=motion-heldout-${SPAN}f; fi
 # The motion benchmark's data at SIZE, with its seeds (scripts/motion_data.sh). Every
 # preset's held-out clips are made, for the cross-type scores; training clips of the other
 # presets only for WINDOWS=all.
@@ -99,6 +111,7 @@ for n in $WINDOWS; do
   sed -e "s#^root = .*#root = \"$run/data\"#" \
       -e "s#^out_dir = .*#out_dir = \"$run\"#" \
       -e "s#^image_size = .*#image_size = [$h, $w]#" \
+      -e "s#^context_frames = .*#context_frames = $CONTEXT#" \
       -e "s#^stride = .*#stride = $stride\nframe_step = $STEP#" \
       -e "s#^batch_size = .*#batch_size = $BATCH#" \
       -e "s#^iterations = .*#iterations = $STEPS#" \
