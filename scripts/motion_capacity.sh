@@ -42,26 +42,20 @@ case "$FREEZE" in
   none) SUFFIX="-unfrozen" ;;
   *) echo "FREEZE must be frozen or none, not '$FREEZE'" >&2; exit 2 ;;
 esac
-case "$BATCH" in
-  1) ;;
-  ''|*[!0-9]*|0) echo "BATCH must be a whole number >= 1, not '$BATCH'" >&2; exit 2 ;;
-  *) SUFFIX="-b$BATCH$SUFFIX" ;;
-esac
-case "$STEPS" in
-  400) ;;
-  ''|*[!0-9]*|0) echo "STEPS must be a whole number >= 1, not '$STEPS'" >&2; exit 2 ;;
-  *) SUFFIX="-s$STEPS$SUFFIX" ;;
-esac
-case "$STEP" in
-  1) ;;
-  ''|*[!0-9]*|0) echo "STEP must be a whole number >= 1, not '$STEP'" >&2; exit 2 ;;
-  *) SUFFIX="-f$STEP$SUFFIX" ;;
-esac
-case "$CONTEXT" in
-  2) ;;
-  ''|*[!0-9]*|0) echo "CONTEXT must be a whole number >= 1, not '$CONTEXT'" >&2; exit 2 ;;
-  *) SUFFIX="-c$CONTEXT$SUFFIX" ;;
-esac
+# A whole-number knob NAME=value with default DEFAULT: validated, and (when not the default)
+# named in the runs folder as -TAGvalue.
+knob() {
+  local name=$1 value=$2 default=$3 tag=$4
+  case "$value" in
+    "$default") ;;
+    ''|*[!0-9]*|0) echo "$name must be a whole number >= 1, not '$value'" >&2; exit 2 ;;
+    *) SUFFIX="-$tag$value$SUFFIX" ;;
+  esac
+}
+knob BATCH "$BATCH" 1 b
+knob STEPS "$STEPS" 400 s
+knob STEP "$STEP" 1 f
+knob CONTEXT "$CONTEXT" 2 c
 case "$SIZE" in
   56x84) SUFFIX="$SUFFIX" ;;
   *x*) SUFFIX="-$SIZE$SUFFIX" ;;
