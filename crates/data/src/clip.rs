@@ -39,9 +39,9 @@ impl ClipSpec {
             .saturating_mul(self.frame_step)
             .saturating_add(1)
     }
-    /// Offsets of the window's frames from its first source frame.
-    pub fn offsets(&self) -> impl Iterator<Item = usize> + '_ {
-        (0..self.num_frames()).map(move |k| k * self.frame_step)
+    /// Source-frame indices of the window that starts at source frame `start`.
+    pub fn frames_from(&self, start: usize) -> impl Iterator<Item = usize> + '_ {
+        (0..self.num_frames()).map(move |k| start + k * self.frame_step)
     }
     pub fn validate(&self) -> Result<()> {
         if self.context == 0 {

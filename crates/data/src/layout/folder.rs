@@ -61,8 +61,8 @@ pub fn scan(root: &Path, spec: &ClipSpec, stride: usize) -> Result<Scan> {
             scan.entries.push(ClipEntry {
                 id: format!("{name}@{s}"),
                 group: name.clone(),
-                frames: spec.offsets().map(|o| frames[s + o].clone()).collect(),
-                frame_numbers: spec.offsets().map(|o| (s + o) as i64).collect(),
+                frames: spec.frames_from(s).map(|i| frames[i].clone()).collect(),
+                frame_numbers: spec.frames_from(s).map(|i| i as i64).collect(),
                 gt: GtSource::None,
             });
         }

@@ -244,12 +244,12 @@ fn scene_clips(
         .take(cap)
         .enumerate()
         .map(|(k, s)| {
-            let window: Vec<_> = spec.offsets().map(|o| &frames[s + o]).collect();
+            let window: Vec<_> = spec.frames_from(s).map(|i| &frames[i]).collect();
             ClipEntry {
                 id: format!("{}/{}#{k}", cfg.split, scene.name),
                 group: format!("{}/{}", cfg.split, scene.name),
                 frames: window.iter().map(|(p, _)| p.clone()).collect(),
-                frame_numbers: spec.offsets().map(|o| (s + o) as i64).collect(),
+                frame_numbers: spec.frames_from(s).map(|i| i as i64).collect(),
                 gt: GtSource::NuScenes {
                     frames: window.iter().map(|(_, g)| g.clone()).collect(),
                 },

@@ -158,7 +158,7 @@ pub fn scan(root: &Path, spec: &ClipSpec, stride: usize) -> Result<Scan> {
                 ));
                 continue;
             }
-            let window: Vec<_> = spec.offsets().map(|o| &span[o]).collect();
+            let window: Vec<_> = spec.frames_from(s).map(|i| &numbered[i]).collect();
             scan.entries.push(ClipEntry {
                 id: format!("{name}@{s}"),
                 group: name.clone(),

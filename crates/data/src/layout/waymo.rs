@@ -168,7 +168,7 @@ fn scene_clips(
         if start.saturating_add(spec.span()) > timesteps.len() {
             break;
         }
-        let ts: Vec<i64> = spec.offsets().map(|o| timesteps[start + o]).collect();
+        let ts: Vec<i64> = spec.frames_from(start).map(|i| timesteps[i]).collect();
         out.push(ClipEntry {
             id: format!("{}/{name}#{k}", cfg.split),
             group: format!("{}/{name}", cfg.split),
