@@ -57,7 +57,7 @@ knob STEPS "$STEPS" 400 s
 knob STEP "$STEP" 1 f
 knob CONTEXT "$CONTEXT" 2 c
 case "$SIZE" in
-  56x84) SUFFIX="$SUFFIX" ;;
+  56x84) ;;
   *x*) SUFFIX="-$SIZE$SUFFIX" ;;
   *) echo "SIZE must be HxW, not '$SIZE'" >&2; exit 2 ;;
 esac
@@ -94,13 +94,14 @@ for n in $WINDOWS; do
     [ -e "$run/data" ] || { mkdir -p "$run"; ln -s "$DATA/motion-train" "$run/data"; }
   else
     if [ "$n" = 1 ]; then clips=1 stride=16; else clips=$(((n + 1) / 2)) stride=$WSTRIDE; fi
-  fi
-  if [ "$n" != all ] && [ ! -d "$run/data" ]; then
-    mkdir -p "$run/data.tmp"
-    for i in $(seq 0 $((clips - 1))); do
-      ln -s "$DATA/motion-train-$PRESET/$(printf clip_%06d "$i")" "$run/data.tmp/"
-    done
-    mv "$run/data.tmp" "$run/data"
+    if [ ! -d "$run/data" ]; then
+      rm -rf "$run/data.tmp"
+      mkdir -p "$run/data.tmp"
+      for i in $(seq 0 $((clips - 1))); do
+        ln -s "$DATA/motion-train-$PRESET/$(printf clip_%06d "$i")" "$run/data.tmp/"
+      done
+      mv "$run/data.tmp" "$run/data"
+    fi
   fi
   sed -e "s#^root = .*#root = \"$run/data\"#" \
       -e "s#^out_dir = .*#out_dir = \"$run\"#" \
