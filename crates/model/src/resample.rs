@@ -7,7 +7,7 @@
 
 use burn::tensor::module::interpolate;
 use burn::tensor::ops::{InterpolateMode, InterpolateOptions};
-use burn::tensor::{Device, Tensor, TensorData};
+use burn::tensor::{Device, Int, Tensor, TensorData};
 use rayon::prelude::*;
 
 /// Cubic convolution coefficient of the antialiased kernel (PIL uses -0.5).
@@ -113,9 +113,10 @@ pub fn bilinear_align_corners_taps(input: usize, output: usize) -> Vec<(usize, u
 
 /// Bilinear (`align_corners=True`) resize of `[N, C, H, W]` to `[N, C, h, w]`. Inference on
 /// the CPU backend runs [`bilinear_align_corners_host`] (separable: columns, then rows);
-/// elsewhere Burn's interpolate op, which has a native backward. (The dense weight-matrix
-/// product [`resample_separable`] gives the same values but, at the DPT heads' final
-/// 200x296 → 350x518 upsample, costs ~2 GMAC a map instead of ~6 flops per output.)
+/// training on a GPU backend [`bilinear_align_corners_gathered`]; elsewhere Burn's
+/// interpolate op. (The dense weight-matrix product [`resample_separable`] gives the same
+/// values but, at the DPT heads' final 200x296 → 350x518 upsample, costs ~2 GMAC a map
+/// instead of ~6 flops per output.)
 pub fn bilinear_align_corners(x: Tensor<4>, out_h: usize, out_w: usize) -> Tensor<4> {
     let [n, c, h, w] = x.dims();
     if (h, w) == (out_h, out_w) {
@@ -127,12 +128,55 @@ pub fn bilinear_align_corners(x: Tensor<4>, out_h: usize, out_w: usize) -> Tenso
         let out = bilinear_align_corners_host(&host, [n * c, h, w], [out_h, out_w]);
         return Tensor::from_data(TensorData::new(out, [n, c, out_h, out_w]), &device);
     }
+    // Burn's CubeCL backends (wgpu, CUDA) implement the interpolate backward for nearest
+    // only: a bilinear resize in a training graph there panics in `backward()`.
+    if device.is_autodiff() && device != Device::flex() {
+        return bilinear_align_corners_gathered(x, out_h, out_w);
+    }
     interpolate(
         x,
         InterpolateOptions::new(InterpolateMode::Bilinear)
             .with_align_corners(true)
             .with_output_size([out_h, out_w]),
     )
+}
+
+/// The same resize as gathers and blends along each axis (width, then height): two
+/// `select`s of the neighbouring rows or columns, weighted by [`bilinear_align_corners_taps`]
+/// in f32 as the host kernel has them. Every op has a backward on every backend (select's is a
+/// deterministic scatter-add), at O(output) work, so a GPU trains through it.
+pub fn bilinear_align_corners_gathered(x: Tensor<4>, out_h: usize, out_w: usize) -> Tensor<4> {
+    let x = blend_along(x, 3, out_w);
+    blend_along(x, 2, out_h)
+}
+
+/// One axis of [`bilinear_align_corners_gathered`].
+fn blend_along(x: Tensor<4>, axis: usize, output: usize) -> Tensor<4> {
+    let input = x.dims()[axis];
+    if input == output {
+        return x;
+    }
+    let device = x.device();
+    let taps = bilinear_align_corners_taps(input, output);
+    let index = |hi: bool| {
+        let v: Vec<i64> = taps
+            .iter()
+            .map(|&(lo, up, _, _)| if hi { up } else { lo } as i64)
+            .collect();
+        Tensor::<1, Int>::from_data(TensorData::new(v, [output]), &device)
+    };
+    let mut shape = [1; 4];
+    shape[axis] = output;
+    let dtype = x.dtype();
+    let weight = |hi: bool| {
+        let v: Vec<f32> = taps
+            .iter()
+            .map(|&(_, _, a, b)| if hi { b } else { a } as f32)
+            .collect();
+        Tensor::<4>::from_data(TensorData::new(v, shape), &device).cast(dtype)
+    };
+    x.clone().select(axis, index(false)) * weight(false)
+        + x.select(axis, index(true)) * weight(true)
 }
 
 /// The separable resize on host planes `[planes, H, W]` → `[planes, h, w]`, one plane per
@@ -216,38 +260,79 @@ mod tests {
         assert!((w[3 * 4 + 1] - 0.5).abs() < 1e-12 && (w[3 * 4 + 2] - 0.5).abs() < 1e-12);
     }
 
-    /// Guards both resize paths (the CPU kernel and Burn's interpolate op, which autodiff
-    /// devices use) against the dense weight-matrix product they replaced: up, down,
-    /// unchanged and single-pixel axes, on values of mixed sign and magnitude.
+    /// Values of mixed sign and magnitude, `[2, 3, h, w]`.
+    fn mixed(h: usize, w: usize, device: &Device) -> Tensor<4> {
+        let vals: Vec<f32> = (0..2 * 3 * h * w)
+            .map(|i| ((i * 7919 % 1013) as f32 - 506.0) * 10f32.powi(i as i32 % 5 - 2))
+            .collect();
+        Tensor::from_data(TensorData::new(vals, [2, 3, h, w]), device)
+    }
+
+    /// Up, down, unchanged and single-pixel axes.
+    const CASES: [(usize, usize, usize, usize); 4] =
+        [(5, 7, 9, 13), (9, 13, 4, 3), (6, 6, 6, 11), (1, 4, 3, 1)];
+
+    fn dense(x: Tensor<4>, oh: usize, ow: usize) -> Tensor<4> {
+        let [_, _, h, w] = x.dims();
+        resample_separable(
+            x,
+            bilinear_align_corners_weights(h, oh),
+            bilinear_align_corners_weights(w, ow),
+            oh,
+            ow,
+        )
+    }
+
+    fn assert_close(got: Tensor<4>, want: Tensor<4>, tol: f32, what: &str) {
+        let (f, d) = (crate::layers::host_f32(got), crate::layers::host_f32(want));
+        assert_eq!(f.len(), d.len(), "{what}");
+        for (i, (a, b)) in f.iter().zip(&d).enumerate() {
+            assert!(
+                (a - b).abs() <= tol * b.abs().max(1.0),
+                "{what}, element {i}: {a} vs {b}"
+            );
+        }
+    }
+
+    /// Guards the three resize paths (the CPU kernel, Burn's interpolate op, and the
+    /// gathered form GPU training takes) against the dense weight-matrix product they
+    /// replaced.
     #[test]
     fn bilinear_paths_match_dense_product() {
         for device in [Device::flex(), Device::flex().autodiff()] {
-            for (h, w, oh, ow) in [(5, 7, 9, 13), (9, 13, 4, 3), (6, 6, 6, 11), (1, 4, 3, 1)] {
-                let n = 2 * 3 * h * w;
-                let vals: Vec<f32> = (0..n)
-                    .map(|i| ((i * 7919 % 1013) as f32 - 506.0) * 10f32.powi(i as i32 % 5 - 2))
-                    .collect();
-                let x = Tensor::<4>::from_data(TensorData::new(vals, [2, 3, h, w]), &device);
+            for (h, w, oh, ow) in CASES {
+                let x = mixed(h, w, &device);
                 let fast = bilinear_align_corners(x.clone(), oh, ow);
                 assert_eq!(fast.dims(), [2, 3, oh, ow]);
-                let dense = resample_separable(
-                    x,
-                    bilinear_align_corners_weights(h, oh),
-                    bilinear_align_corners_weights(w, ow),
-                    oh,
-                    ow,
-                );
-                let (f, d) = (
-                    crate::layers::host_f32(fast),
-                    crate::layers::host_f32(dense),
-                );
-                for (i, (a, b)) in f.iter().zip(&d).enumerate() {
-                    assert!(
-                        (a - b).abs() <= 1e-6 * b.abs().max(1.0),
-                        "{device:?} {h}x{w} -> {oh}x{ow}, element {i}: {a} vs {b}"
-                    );
-                }
+                let what = format!("{device:?} {h}x{w} -> {oh}x{ow}");
+                assert_close(fast, dense(x.clone(), oh, ow), 1e-6, &what);
+                let gathered = bilinear_align_corners_gathered(x.clone(), oh, ow);
+                let what = format!("gathered, {what}");
+                assert_close(gathered, dense(x, oh, ow), 1e-6, &what);
             }
+        }
+    }
+
+    /// Guards the gathered form's backward (select's scatter-add, with the repeated taps of
+    /// an upsample and the clamped last tap): the input gradient of a weighted sum equals
+    /// the dense product's, whose backward is two matmuls.
+    #[test]
+    fn gathered_bilinear_gradient_matches_dense_product() {
+        let device = Device::flex().autodiff();
+        for (h, w, oh, ow) in CASES {
+            let grad = |f: &dyn Fn(Tensor<4>) -> Tensor<4>| {
+                let x = mixed(h, w, &device).require_grad();
+                let r = mixed(oh, ow, &device).div_scalar(100.0);
+                let grads = (f(x.clone()) * r).sum().backward();
+                x.grad(&grads).expect("input gradient")
+            };
+            assert_close(
+                grad(&|x| bilinear_align_corners_gathered(x, oh, ow)),
+                grad(&|x| dense(x, oh, ow)),
+                // Sums of up to 4 x 13 products in another order than the matmuls'.
+                1e-5,
+                &format!("gradient, {h}x{w} -> {oh}x{ow}"),
+            );
         }
     }
 }
