@@ -12,3 +12,4 @@ mod pose;
 mod run;
 mod schedule;
 mod step;
+mod wgpu_step;
