@@ -1,11 +1,10 @@
 //! One training step on the CubeCL backend (lavapipe in CI) against the same step on the CPU.
 
-use crate::common::{synth_clip, tiny_config};
+use crate::common::{batch, tiny_config};
 use burn::module::Module;
 use burn::tensor::Device;
 use envision4d_model::host_read::host_reads;
 use envision4d_splat::kernels::readback::host_readbacks;
-use envision4d_train::batch::Batch;
 use envision4d_train::config::ClipMode;
 use envision4d_train::grad_clip::GradGroup;
 use envision4d_train::step::{StepOutcome, StepReport};
@@ -16,10 +15,10 @@ fn rel(a: f64, b: f64) -> f64 {
     (a - b).abs() / b.abs().max(1e-12)
 }
 
-/// One step of `t` on `clip`, with the host reads it made: (the step's own, the
+/// One step of `t` on the tests' clip, with the host reads it made: (the step's own, the
 /// rasterizer's).
 fn step(t: &mut Trainer, device: &Device) -> (StepReport, usize, usize) {
-    let batch = Batch::from_clips(&[synth_clip(3)], 2, true, device).expect("batch");
+    let batch = batch(2, true, device);
     let (reads, raster) = (host_reads(), host_readbacks());
     let r = t.train_step(&batch).expect("the step runs");
     (r, host_reads() - reads, host_readbacks() - raster)
