@@ -9,7 +9,9 @@ use crate::InputError;
 use burn::tensor::{Device, DeviceKind, Tensor};
 use clap::ValueEnum;
 use envision4d_model::precision::Precision;
+use std::any::Any;
 use std::panic::{catch_unwind, AssertUnwindSafe};
+use std::sync::{Arc, Mutex};
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum, Default)]
 pub enum BackendChoice {
@@ -120,9 +122,20 @@ fn cuda(_index: usize, what: &str) -> Result<Device, InputError> {
 /// Starts a device and round-trips one tiny tensor through it. Backends report a missing
 /// driver by panicking deep inside; the panic is caught here, kept off stderr, and turned
 /// into an error that says what to install.
+///
+/// CubeCL's CUDA runtime starts the driver on its own server thread: the panic that names
+/// the cause (cudarc failing to load libcuda) happens there, and the calling thread only sees
+/// a closed channel. So the hook records every panic message during the probe, and the
+/// error quotes the first one.
 fn probe(what: &str, hint: &str, make: impl FnOnce() -> Device) -> Result<Device, InputError> {
+    let seen: Arc<Mutex<Vec<String>>> = Arc::default();
     let quiet = std::panic::take_hook();
-    std::panic::set_hook(Box::new(|_| {}));
+    let record = Arc::clone(&seen);
+    std::panic::set_hook(Box::new(move |info| {
+        if let Ok(mut seen) = record.lock() {
+            seen.push(panic_message(info.payload()).to_string());
+        }
+    }));
     let started = catch_unwind(AssertUnwindSafe(|| {
         let device = make();
         let t = Tensor::<1>::from_floats([1.0, 2.0], &device);
@@ -131,11 +144,17 @@ fn probe(what: &str, hint: &str, make: impl FnOnce() -> Device) -> Result<Device
     }));
     std::panic::set_hook(quiet);
     started.map_err(|payload| {
-        let cause = payload
-            .downcast_ref::<String>()
-            .map(String::as_str)
-            .or_else(|| payload.downcast_ref::<&str>().copied())
-            .unwrap_or("no message");
+        let first = seen.lock().ok().and_then(|seen| seen.first().cloned());
+        let cause = first.unwrap_or_else(|| panic_message(payload.as_ref()).to_string());
         InputError(format!("{what}: {hint} (the backend said: {cause})"))
     })
+}
+
+/// The text of a panic's payload (`panic!` with a literal or a formatted message).
+fn panic_message(payload: &(dyn Any + Send)) -> &str {
+    payload
+        .downcast_ref::<String>()
+        .map(String::as_str)
+        .or_else(|| payload.downcast_ref::<&str>().copied())
+        .unwrap_or("no message")
 }
