@@ -1,0 +1,55 @@
+#!/usr/bin/env bash
+# Builds the CUDA-enabled benches (and optionally the binary) here and packs them for a GPU
+# machine that should not spend its short lease compiling: one stripped, solid-compressed
+# tar (the binaries share LLVM, burn and our kernels, so one 512 MiB xz window stores them
+# once) at runs/gpu-pack/cuda-bins.tar.xz. docs/PERFORMANCE.md, "Building for CUDA".
+#
+#   scripts/gpu_pack.sh                 # raster, forward and train_step benches
+#   WITH_CLI=1 scripts/gpu_pack.sh      # and the envision4d binary (--backend cuda checks)
+#
+# On the GPU machine, from the repository root with the pack carried along:
+#   scripts/gpu_device_check.sh         # unpacks it, runs the CUDA checks and gpu_bench.sh
+#
+# Builds in their own target directory (CUDA_TARGET_DIR), so the everyday one keeps its
+# feature set and stays warm. Linking needs LLVM 23.1: tracel's bundle, or
+# scripts/llvm_offline.sh where GitHub is out of reach (run here when neither is present).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+PACK=${PACK:-runs/gpu-pack}
+export CARGO_TARGET_DIR=${CUDA_TARGET_DIR:-$HOME/.cache/envision4d-cuda-target}
+BUNDLE=${XDG_DATA_HOME:-$HOME/.local/share}/tracel/tracel-llvm-23.1.0-4
+# The carry limit of the device tool: the working tree and the pack travel together.
+CARRY_LIMIT=$((64 * 1024 * 1024))
+
+if [ ! -e "$BUNDLE/.tracel-llvm-installed" ]; then
+  scripts/llvm_offline.sh
+fi
+
+stage=$(mktemp -d)
+trap 'rm -rf "$stage"' EXIT
+features=envision4d-splat/cuda,envision4d-model/cuda,envision4d-train/cuda
+cargo bench --workspace --no-run --bench raster --bench forward --bench train_step \
+  --features "$features" 2>&1 | tee "$stage/build.log" | grep -E '^(error|warning: unused)' || true
+for name in raster forward train_step; do
+  bin=$(sed -n "s/.*Executable benches\/$name\.rs (\(.*\))$/\1/p" "$stage/build.log" | tail -1)
+  [ -x "$bin" ] || { echo "gpu_pack: the $name bench did not build (log: cargo above)" >&2; exit 1; }
+  cp "$bin" "$stage/$name"
+done
+if [ -n "${WITH_CLI:-}" ]; then
+  cargo build --release -p envision4d-cli --features envision4d-cli/cuda
+  cp "$CARGO_TARGET_DIR/release/envision4d" "$stage/envision4d"
+fi
+rm "$stage/build.log"
+strip "$stage"/*
+mkdir -p "$PACK"
+# xz rather than zstd: every Linux has it (and Python's lzma reads it where it does not).
+(cd "$stage" && tar cf - -- *) | xz -T1 --lzma2=preset=9,dict=512MiB > "$PACK/cuda-bins.tar.xz.tmp"
+mv "$PACK/cuda-bins.tar.xz.tmp" "$PACK/cuda-bins.tar.xz"
+packed=$(stat -c %s "$PACK/cuda-bins.tar.xz")
+tree=$(git ls-files -z | xargs -0 stat -c %s | awk '{ s += $1 } END { print s }')
+echo "gpu_pack: $PACK/cuda-bins.tar.xz, $((packed / 1048576)) MiB ($(cd "$stage" && ls | tr '\n' ' '))"
+echo "gpu_pack: with the tracked tree ($((tree / 1048576)) MiB) it travels as $(((packed + tree) / 1048576)) MiB of 64"
+if [ $((packed + tree)) -gt $CARRY_LIMIT ]; then
+  echo "gpu_pack: over the device tool's 64 MiB; pack fewer binaries (without WITH_CLI)" >&2
+  exit 1
+fi
