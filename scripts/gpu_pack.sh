@@ -6,6 +6,8 @@
 #
 #   scripts/gpu_pack.sh                 # raster, forward and train_step benches
 #   WITH_CLI=1 scripts/gpu_pack.sh      # and the envision4d binary (--backend cuda checks)
+#   NVRTC=1 scripts/gpu_pack.sh         # the `cuda-nvrtc` builds: kernels through NVRTC
+#                                       # rather than LLVM (the machine then needs libnvrtc)
 #
 # On the GPU machine, from the repository root with the pack carried along:
 #   scripts/gpu_device_check.sh         # unpacks it, runs the CUDA checks and gpu_bench.sh
@@ -27,7 +29,8 @@ fi
 
 stage=$(mktemp -d)
 trap 'rm -rf "$stage"' EXIT
-features=envision4d-splat/cuda,envision4d-model/cuda,envision4d-train/cuda
+cuda=cuda${NVRTC:+-nvrtc}
+features=envision4d-splat/$cuda,envision4d-model/$cuda,envision4d-train/$cuda
 cargo bench --workspace --no-run --bench raster --bench forward --bench train_step \
   --features "$features" 2>&1 | tee "$stage/build.log" | grep -E '^(error|warning: unused)' || true
 for name in raster forward train_step; do
@@ -36,7 +39,7 @@ for name in raster forward train_step; do
   cp "$bin" "$stage/$name"
 done
 if [ -n "${WITH_CLI:-}" ]; then
-  cargo build --release -p envision4d-cli --features envision4d-cli/cuda
+  cargo build --release -p envision4d-cli --features "envision4d-cli/$cuda"
   cp "$CARGO_TARGET_DIR/release/envision4d" "$stage/envision4d"
 fi
 rm "$stage/build.log"

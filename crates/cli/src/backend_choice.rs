@@ -21,7 +21,7 @@ pub enum BackendChoice {
     /// wgpu on the best available GPU (WGSL kernels; a software Vulkan driver also works).
     Wgpu,
     /// CUDA on NVIDIA GPU 0 (the same CubeCL kernels; binaries built with `--features cuda`;
-    /// the driver and NVRTC are loaded at run time, no toolkit needed to build).
+    /// the driver is loaded at run time, no toolkit needed to build).
     Cuda,
 }
 
@@ -60,10 +60,15 @@ impl PrecisionChoice {
 /// What a machine needs for the wgpu backend.
 const WGPU_HINT: &str = "no wgpu adapter could start; install a Vulkan, Metal or DX12 driver \
                          (on Linux without a GPU, Mesa's lavapipe: mesa-vulkan-drivers)";
-/// What a machine needs for the CUDA backend.
-#[cfg(feature = "cuda")]
+/// What a machine needs for the CUDA backend: the driver alone where CubeCL lowers kernels to
+/// PTX through its linked LLVM (the default), NVRTC too in a `cuda-nvrtc` build.
+#[cfg(all(feature = "cuda", not(feature = "cuda-nvrtc")))]
+const CUDA_HINT: &str = "CUDA could not start; it needs an NVIDIA GPU and its driver \
+                         (libcuda.so.1) on the library path";
+#[cfg(feature = "cuda-nvrtc")]
 const CUDA_HINT: &str = "CUDA could not start; it needs an NVIDIA GPU, its driver \
-                         (libcuda.so.1) and NVRTC (libnvrtc.so) on the library path";
+                         (libcuda.so.1) and NVRTC (libnvrtc.so, this binary is a cuda-nvrtc \
+                         build) on the library path";
 
 impl BackendChoice {
     /// The device, started and checked with one tiny tensor.
