@@ -56,3 +56,4 @@ if [ $((packed + tree)) -gt $CARRY_LIMIT ]; then
   echo "gpu_pack: over the device tool's 64 MiB; pack fewer binaries (without WITH_CLI)" >&2
   exit 1
 fi
+echo "gpu_pack: on the GPU machine, with $PACK carried (git ignores it): OUT=<dir> scripts/gpu_device_check.sh"

@@ -138,7 +138,7 @@ fn probe(what: &str, hint: &str, make: impl FnOnce() -> Device) -> Result<Device
     let record = Arc::clone(&seen);
     std::panic::set_hook(Box::new(move |info| {
         if let Ok(mut seen) = record.lock() {
-            seen.push(panic_message(info.payload()).to_string());
+            seen.push(panic_message(info.payload()).to_owned());
         }
     }));
     let started = catch_unwind(AssertUnwindSafe(|| {
@@ -150,7 +150,7 @@ fn probe(what: &str, hint: &str, make: impl FnOnce() -> Device) -> Result<Device
     std::panic::set_hook(quiet);
     started.map_err(|payload| {
         let first = seen.lock().ok().and_then(|seen| seen.first().cloned());
-        let cause = first.unwrap_or_else(|| panic_message(payload.as_ref()).to_string());
+        let cause = first.unwrap_or_else(|| panic_message(payload.as_ref()).to_owned());
         InputError(format!("{what}: {hint} (the backend said: {cause})"))
     })
 }
