@@ -29,6 +29,11 @@ else
     "$PACK/cuda-bins.tar.xz" "$bins"
 fi
 say "unpacked: $(ls "$bins" | tr '\n' ' ')"
+# libdevice for CubeCL's LLVM route (scripts/gpu_pack.sh): the machine's toolkit if it has one.
+if [ ! -f "${CUDA_PATH:-/usr/local/cuda}/nvvm/libdevice/libdevice.10.bc" ]; then
+  export CUDA_PATH="$bins/cuda"
+  say "CUDA_PATH=$CUDA_PATH (the packed libdevice)"
+fi
 if ! ldconfig -p | grep -q libvulkan && [ -d .gl ]; then
   for f in .gl/*.deb; do dpkg -x "$f" /; done
   ldconfig

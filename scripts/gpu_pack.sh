@@ -44,6 +44,24 @@ if [ -n "${WITH_CLI:-}" ]; then
 fi
 rm "$stage/build.log"
 strip "$stage"/*
+
+# CubeCL's LLVM route links NVIDIA's libdevice (nvvm/libdevice/libdevice.10.bc, found under
+# CUDA_PATH) into any kernel that calls a math function PTX has no instruction for: our
+# projection and rasterizer kernels do. A machine with the driver alone lacks it, so the pack
+# carries one: the toolkit's under CUDA_PATH, or the copy in NVIDIA's PyPI wheel of nvcc.
+libdevice=${CUDA_PATH:-/usr/local/cuda}/nvvm/libdevice/libdevice.10.bc
+if [ ! -f "$libdevice" ]; then
+  pip download --no-deps --quiet nvidia-cuda-nvcc-cu12 -d "$stage/wheel"
+  python3 -c 'import sys, zipfile, glob; zipfile.ZipFile(glob.glob(sys.argv[1] + "/*.whl")[0]).extract("nvidia/cuda_nvcc/nvvm/libdevice/libdevice.10.bc", sys.argv[1])' "$stage/wheel"
+  libdevice=$stage/wheel/nvidia/cuda_nvcc/nvvm/libdevice/libdevice.10.bc
+fi
+mkdir -p "$stage/cuda/nvvm/libdevice"
+cp "$libdevice" "$stage/cuda/nvvm/libdevice/"
+rm -rf "$stage/wheel"
+
+# Every rasterizer kernel through that route for Hopper, here, before a lease is spent on it.
+CUDA_PATH=$stage/cuda cargo run --release -p envision4d-splat --features "envision4d-splat/$cuda" \
+  --example ptx_check -- 90
 mkdir -p "$PACK"
 # xz rather than zstd: every Linux has it (and Python's lzma reads it where it does not).
 (cd "$stage" && tar cf - -- *) | xz -T1 --lzma2=preset=9,dict=512MiB > "$PACK/cuda-bins.tar.xz.tmp"

@@ -1,0 +1,421 @@
+//! Compiles every CubeCL kernel of the rasterizer to PTX for an NVIDIA architecture, on a
+//! machine without a GPU, through the LLVM route the CUDA runtime takes by default
+//! (`cubecl_llvm::PlironCompiler`, linked into every `cuda` build). A kernel that route
+//! cannot lower fails here, before a GPU lease is spent on it (docs/PERFORMANCE.md,
+//! "Building for CUDA").
+//!
+//! cargo run --release -p envision4d-splat --features envision4d-splat/cuda --example ptx_check -- [SM] [DIR]
+//!
+//! SM is the architecture (90 = Hopper, the default; 80 = Ampere); DIR, when given, gets one
+//! `.ptx` file per kernel. Exit code 1 when any kernel fails to compile.
+
+use cubecl::ir::features::Features;
+use cubecl::ir::nvidia::SmArch;
+use cubecl::ir::{DeviceIdentity, HardwareProperties, MemoryDeviceProperties};
+use cubecl::prelude::*;
+use cubecl::Compiler;
+use cubecl_llvm::nvptx::ptx_version::PtxVersion;
+use cubecl_llvm::{LlvmTarget, PlironArtifact, PlironCompiler, PlironOptions};
+use envision4d_splat::kernels::rasterize_backward::{CasAdd, NativeAdd};
+use envision4d_splat::kernels::rasterize_forward::TILE;
+use envision4d_splat::kernels::{
+    bin_tiles, camera_grad, project_backward, project_forward, radix_sort, rasterize_backward,
+    rasterize_forward, scan, view_meta,
+};
+use std::ffi::CStr;
+use std::sync::Arc;
+
+/// Units per cube of the one-dimensional kernels (the launch code's own sizes vary; the
+/// lowering does not depend on them).
+const LINE: u32 = 256;
+/// The newest PTX the CUDA 12.8 driver accepts, as the runtime would pick on such a driver.
+const DRIVER: i32 = 12080;
+
+/// A tensor argument, never aliased (the launch code passes none in place).
+fn t() -> TensorCompilationArg {
+    TensorCompilationArg {
+        meta: TensorMetaCompilationArg { len: (), rank: () },
+        buffer: BufferCompilationArg { inplace: None },
+    }
+}
+
+/// An NVIDIA part as the kernels see it: 32-lane planes, 48 KiB of static shared memory.
+fn p() -> Arc<DeviceProperties> {
+    let hardware = HardwareProperties {
+        load_width: 128,
+        vector_register_count: None,
+        plane_size_min: 32,
+        plane_size_max: 32,
+        max_bindings: 32,
+        max_shared_memory_size: 49152,
+        max_cube_count: (u32::MAX, u16::MAX as u32, u16::MAX as u32),
+        max_units_per_cube: 1024,
+        max_cube_dim: (1024, 1024, 64),
+        num_streaming_multiprocessors: None,
+        num_tensor_cores: None,
+        min_tensor_cores_dim: None,
+        num_cpu_cores: None,
+        last_level_cache_size: None,
+        max_vector_size: VectorSize::MAX,
+        cube_mma_reserved_shared_memory: 0,
+    };
+    Arc::new(DeviceProperties::new(
+        Features::default(),
+        MemoryDeviceProperties::new(u64::MAX, 256),
+        hardware,
+        cubecl::profile::TimingMethod::Device,
+        DeviceIdentity {
+            name: "offline".to_owned(),
+            fingerprint: "offline".to_owned(),
+            physical: None,
+        },
+    ))
+}
+
+fn tp() -> Arc<TargetProperties> {
+    Arc::new(TargetProperties::default())
+}
+
+/// Cube shapes: one row of units, or one tile of pixels (the rasterizer's).
+#[derive(Clone, Copy)]
+enum Shape {
+    Line,
+    Tile,
+}
+
+fn s(shape: Shape) -> KernelSettings {
+    let dim = match shape {
+        Shape::Line => CubeDim::new_1d(LINE),
+        Shape::Tile => CubeDim::new_2d(TILE, TILE),
+    };
+    KernelSettings::new(*dim, ExecutionMode::Checked, AddressType::U32)
+}
+
+fn main() {
+    let mut args = std::env::args().skip(1);
+    let sm: u32 = match args.next().map(|a| a.parse()) {
+        None => 90,
+        Some(Ok(sm)) => sm,
+        Some(Err(e)) => {
+            eprintln!("ptx_check: SM must be a number like 90: {e}");
+            std::process::exit(2);
+        }
+    };
+    let dir = args.next().map(std::path::PathBuf::from);
+    let kernels: Vec<(&str, Box<dyn CubeKernel>)> = vec![
+        (
+            "depth_keys",
+            Box::new(bin_tiles::depth_keys::DepthKeys::new(
+                s(Shape::Line),
+                p(),
+                tp(),
+                t(),
+                t(),
+                t(),
+                t(),
+                (),
+            )),
+        ),
+        (
+            "tile_counts",
+            Box::new(bin_tiles::tile_counts::TileCounts::new(
+                s(Shape::Line),
+                p(),
+                tp(),
+                t(),
+                t(),
+                t(),
+                t(),
+                (),
+            )),
+        ),
+        (
+            "emit_intersections",
+            Box::new(bin_tiles::emit_intersections::EmitIntersections::new(
+                s(Shape::Line),
+                p(),
+                tp(),
+                t(),
+                t(),
+                t(),
+                t(),
+                t(),
+                t(),
+                (),
+                (),
+            )),
+        ),
+        (
+            "tile_ranges",
+            Box::new(bin_tiles::tile_ranges::TileRanges::new(
+                s(Shape::Line),
+                p(),
+                tp(),
+                t(),
+                t(),
+                (),
+                (),
+            )),
+        ),
+        (
+            "copy_total",
+            Box::new(bin_tiles::copy_total::CopyTotal::new(
+                s(Shape::Line),
+                p(),
+                tp(),
+                t(),
+                t(),
+                (),
+                (),
+            )),
+        ),
+        (
+            "camera_grad_matrices",
+            Box::new(camera_grad::camera_grad_matrices::CameraGradMatrices::new(
+                s(Shape::Line),
+                p(),
+                tp(),
+                t(),
+                t(),
+                t(),
+                (),
+            )),
+        ),
+        (
+            "project_backward",
+            Box::new(project_backward::project_backward::ProjectBackward::new(
+                s(Shape::Line),
+                p(),
+                tp(),
+                t(),
+                t(),
+                t(),
+                t(),
+                t(),
+                t(),
+                t(),
+                t(),
+                t(),
+                t(),
+                t(),
+                t(),
+                (),
+                (),
+                (),
+                (),
+                (),
+            )),
+        ),
+        (
+            "project_forward",
+            Box::new(project_forward::project_forward::ProjectForward::new(
+                s(Shape::Line),
+                p(),
+                tp(),
+                t(),
+                t(),
+                t(),
+                t(),
+                t(),
+                t(),
+                t(),
+                t(),
+                (),
+                (),
+                (),
+                (),
+                (),
+                (),
+                (),
+                (),
+            )),
+        ),
+        (
+            "radix_count",
+            Box::new(radix_sort::radix_count::RadixCount::new(
+                s(Shape::Line),
+                p(),
+                tp(),
+                t(),
+                t(),
+                (),
+                (),
+                (),
+            )),
+        ),
+        (
+            "radix_scatter",
+            Box::new(radix_sort::radix_scatter::RadixScatter::new(
+                s(Shape::Line),
+                p(),
+                tp(),
+                t(),
+                t(),
+                t(),
+                t(),
+                t(),
+                (),
+                (),
+                (),
+            )),
+        ),
+        (
+            "rasterize_backward<NativeAdd>",
+            Box::new(rasterize_backward::rasterize_backward::RasterizeBackward::<
+                NativeAdd,
+            >::new(
+                s(Shape::Tile),
+                p(),
+                tp(),
+                t(),
+                t(),
+                t(),
+                t(),
+                t(),
+                (),
+                (),
+                (),
+                (),
+                (),
+                (),
+                (),
+            )),
+        ),
+        (
+            "rasterize_backward<CasAdd>",
+            Box::new(rasterize_backward::rasterize_backward::RasterizeBackward::<
+                CasAdd,
+            >::new(
+                s(Shape::Tile),
+                p(),
+                tp(),
+                t(),
+                t(),
+                t(),
+                t(),
+                t(),
+                (),
+                (),
+                (),
+                (),
+                (),
+                (),
+                (),
+            )),
+        ),
+        (
+            "rasterize_forward",
+            Box::new(rasterize_forward::rasterize_forward::RasterizeForward::new(
+                s(Shape::Tile),
+                p(),
+                tp(),
+                t(),
+                t(),
+                t(),
+                t(),
+                (),
+                (),
+                (),
+                (),
+                (),
+                (),
+                (),
+            )),
+        ),
+        (
+            "scan_blocks",
+            Box::new(scan::scan_blocks::ScanBlocks::new(
+                s(Shape::Line),
+                p(),
+                tp(),
+                t(),
+                t(),
+                t(),
+                (),
+                (),
+                (),
+            )),
+        ),
+        (
+            "scan_add",
+            Box::new(scan::scan_add::ScanAdd::new(
+                s(Shape::Line),
+                p(),
+                tp(),
+                t(),
+                t(),
+                (),
+            )),
+        ),
+        (
+            "radii_and_flags",
+            Box::new(view_meta::radii_and_flags::RadiiAndFlags::new(
+                s(Shape::Line),
+                p(),
+                tp(),
+                t(),
+                t(),
+                t(),
+                (),
+                (),
+                (),
+            )),
+        ),
+        (
+            "view_counts",
+            Box::new(view_meta::view_counts::ViewCounts::new(
+                s(Shape::Line),
+                p(),
+                tp(),
+                t(),
+                t(),
+                (),
+                (),
+                (),
+            )),
+        ),
+    ];
+    let options = PlironOptions {
+        sm_arch: Some(SmArch::new(sm, sm >= 70)),
+        ptx_version: PtxVersion::for_driver(DRIVER),
+        ..Default::default()
+    };
+    let mut failed = 0;
+    for (name, kernel) in kernels {
+        let mut compiler = PlironCompiler {
+            target: LlvmTarget::Nvptx,
+        };
+        match compiler.compile(kernel.define(), &options) {
+            Ok(PlironArtifact::NvptxCode(module)) => {
+                // SAFETY: the module's PTX is NUL-terminated (cubecl-llvm's contract).
+                let ptx = unsafe { CStr::from_ptr(module.ptx.as_ptr()) }.to_string_lossy();
+                let entries = ptx.matches(".entry").count();
+                println!(
+                    "ok      {name}: {} bytes of PTX, {entries} entry",
+                    ptx.len()
+                );
+                if let Some(dir) = &dir {
+                    let path = dir.join(format!("{name}.ptx"));
+                    if let Err(e) = std::fs::create_dir_all(dir)
+                        .and_then(|()| std::fs::write(&path, ptx.as_bytes()))
+                    {
+                        eprintln!("ptx_check: cannot write {}: {e}", path.display());
+                        std::process::exit(1);
+                    }
+                }
+            }
+            Ok(_) => {
+                println!("FAILED  {name}: the NVPTX target returned no PTX");
+                failed += 1;
+            }
+            Err(e) => {
+                println!("FAILED  {name}: {e:?}");
+                failed += 1;
+            }
+        }
+    }
+    println!("sm_{sm}: {failed} kernel(s) failed");
+    if failed > 0 {
+        std::process::exit(1);
+    }
+}
