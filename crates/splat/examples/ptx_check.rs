@@ -91,6 +91,29 @@ fn s(shape: Shape) -> KernelSettings {
     KernelSettings::new(*dim, ExecutionMode::Checked, AddressType::U32)
 }
 
+/// One kernel to compile: its name, its generated launch struct, its cube shape, and its
+/// runtime parameters in signature order (`T` a tensor, `s` a scalar). Brackets rather than
+/// commas keep the list one line per kernel.
+macro_rules! kernel {
+    ($name:expr, $kernel:ty, $shape:ident, [$($arg:ident)*]) => {
+        (
+            $name,
+            Box::new(<$kernel>::new(s(Shape::$shape), p(), tp(), $(arg!($arg)),*))
+                as Box<dyn CubeKernel>,
+        )
+    };
+}
+
+/// A runtime parameter's compilation argument: a tensor's, or nothing for a scalar.
+macro_rules! arg {
+    (T) => {
+        t()
+    };
+    (s) => {
+        ()
+    };
+}
+
 fn main() {
     let mut args = std::env::args().skip(1);
     let sm: u32 = match args.next().map(|a| a.parse()) {
@@ -103,277 +126,23 @@ fn main() {
     };
     let dir = args.next().map(std::path::PathBuf::from);
     let kernels: Vec<(&str, Box<dyn CubeKernel>)> = vec![
-        (
-            "depth_keys",
-            Box::new(bin_tiles::depth_keys::DepthKeys::new(
-                s(Shape::Line),
-                p(),
-                tp(),
-                t(),
-                t(),
-                t(),
-                t(),
-                (),
-            )),
-        ),
-        (
-            "tile_counts",
-            Box::new(bin_tiles::tile_counts::TileCounts::new(
-                s(Shape::Line),
-                p(),
-                tp(),
-                t(),
-                t(),
-                t(),
-                t(),
-                (),
-            )),
-        ),
-        (
-            "emit_intersections",
-            Box::new(bin_tiles::emit_intersections::EmitIntersections::new(
-                s(Shape::Line),
-                p(),
-                tp(),
-                t(),
-                t(),
-                t(),
-                t(),
-                t(),
-                t(),
-                (),
-                (),
-            )),
-        ),
-        (
-            "tile_ranges",
-            Box::new(bin_tiles::tile_ranges::TileRanges::new(
-                s(Shape::Line),
-                p(),
-                tp(),
-                t(),
-                t(),
-                (),
-                (),
-            )),
-        ),
-        (
-            "copy_total",
-            Box::new(bin_tiles::copy_total::CopyTotal::new(
-                s(Shape::Line),
-                p(),
-                tp(),
-                t(),
-                t(),
-                (),
-                (),
-            )),
-        ),
-        (
-            "camera_grad_matrices",
-            Box::new(camera_grad::camera_grad_matrices::CameraGradMatrices::new(
-                s(Shape::Line),
-                p(),
-                tp(),
-                t(),
-                t(),
-                t(),
-                (),
-            )),
-        ),
-        (
-            "project_backward",
-            Box::new(project_backward::project_backward::ProjectBackward::new(
-                s(Shape::Line),
-                p(),
-                tp(),
-                t(),
-                t(),
-                t(),
-                t(),
-                t(),
-                t(),
-                t(),
-                t(),
-                t(),
-                t(),
-                t(),
-                t(),
-                (),
-                (),
-                (),
-                (),
-                (),
-            )),
-        ),
-        (
-            "project_forward",
-            Box::new(project_forward::project_forward::ProjectForward::new(
-                s(Shape::Line),
-                p(),
-                tp(),
-                t(),
-                t(),
-                t(),
-                t(),
-                t(),
-                t(),
-                t(),
-                t(),
-                (),
-                (),
-                (),
-                (),
-                (),
-                (),
-                (),
-                (),
-            )),
-        ),
-        (
-            "radix_count",
-            Box::new(radix_sort::radix_count::RadixCount::new(
-                s(Shape::Line),
-                p(),
-                tp(),
-                t(),
-                t(),
-                (),
-                (),
-                (),
-            )),
-        ),
-        (
-            "radix_scatter",
-            Box::new(radix_sort::radix_scatter::RadixScatter::new(
-                s(Shape::Line),
-                p(),
-                tp(),
-                t(),
-                t(),
-                t(),
-                t(),
-                t(),
-                (),
-                (),
-                (),
-            )),
-        ),
-        (
-            "rasterize_backward<NativeAdd>",
-            Box::new(rasterize_backward::rasterize_backward::RasterizeBackward::<
-                NativeAdd,
-            >::new(
-                s(Shape::Tile),
-                p(),
-                tp(),
-                t(),
-                t(),
-                t(),
-                t(),
-                t(),
-                (),
-                (),
-                (),
-                (),
-                (),
-                (),
-                (),
-            )),
-        ),
-        (
-            "rasterize_backward<CasAdd>",
-            Box::new(rasterize_backward::rasterize_backward::RasterizeBackward::<
-                CasAdd,
-            >::new(
-                s(Shape::Tile),
-                p(),
-                tp(),
-                t(),
-                t(),
-                t(),
-                t(),
-                t(),
-                (),
-                (),
-                (),
-                (),
-                (),
-                (),
-                (),
-            )),
-        ),
-        (
-            "rasterize_forward",
-            Box::new(rasterize_forward::rasterize_forward::RasterizeForward::new(
-                s(Shape::Tile),
-                p(),
-                tp(),
-                t(),
-                t(),
-                t(),
-                t(),
-                (),
-                (),
-                (),
-                (),
-                (),
-                (),
-                (),
-            )),
-        ),
-        (
-            "scan_blocks",
-            Box::new(scan::scan_blocks::ScanBlocks::new(
-                s(Shape::Line),
-                p(),
-                tp(),
-                t(),
-                t(),
-                t(),
-                (),
-                (),
-                (),
-            )),
-        ),
-        (
-            "scan_add",
-            Box::new(scan::scan_add::ScanAdd::new(
-                s(Shape::Line),
-                p(),
-                tp(),
-                t(),
-                t(),
-                (),
-            )),
-        ),
-        (
-            "radii_and_flags",
-            Box::new(view_meta::radii_and_flags::RadiiAndFlags::new(
-                s(Shape::Line),
-                p(),
-                tp(),
-                t(),
-                t(),
-                t(),
-                (),
-                (),
-                (),
-            )),
-        ),
-        (
-            "view_counts",
-            Box::new(view_meta::view_counts::ViewCounts::new(
-                s(Shape::Line),
-                p(),
-                tp(),
-                t(),
-                t(),
-                (),
-                (),
-                (),
-            )),
-        ),
+        kernel!("depth_keys", bin_tiles::depth_keys::DepthKeys, Line, [T T T T s]),
+        kernel!("tile_counts", bin_tiles::tile_counts::TileCounts, Line, [T T T T s]),
+        kernel!("emit_intersections", bin_tiles::emit_intersections::EmitIntersections, Line, [T T T T T T s s]),
+        kernel!("tile_ranges", bin_tiles::tile_ranges::TileRanges, Line, [T T s s]),
+        kernel!("copy_total", bin_tiles::copy_total::CopyTotal, Line, [T T s s]),
+        kernel!("camera_grad_matrices", camera_grad::camera_grad_matrices::CameraGradMatrices, Line, [T T T s]),
+        kernel!("project_backward", project_backward::project_backward::ProjectBackward, Line, [T T T T T T T T T T T T s s s s s]),
+        kernel!("project_forward", project_forward::project_forward::ProjectForward, Line, [T T T T T T T T s s s s s s s s]),
+        kernel!("radix_count", radix_sort::radix_count::RadixCount, Line, [T T s s s]),
+        kernel!("radix_scatter", radix_sort::radix_scatter::RadixScatter, Line, [T T T T T s s s]),
+        kernel!("rasterize_backward<NativeAdd>", rasterize_backward::rasterize_backward::RasterizeBackward::<NativeAdd>, Tile, [T T T T T s s s s s s s]),
+        kernel!("rasterize_backward<CasAdd>", rasterize_backward::rasterize_backward::RasterizeBackward::<CasAdd>, Tile, [T T T T T s s s s s s s]),
+        kernel!("rasterize_forward", rasterize_forward::rasterize_forward::RasterizeForward, Tile, [T T T T s s s s s s s]),
+        kernel!("scan_blocks", scan::scan_blocks::ScanBlocks, Line, [T T T s s s]),
+        kernel!("scan_add", scan::scan_add::ScanAdd, Line, [T T s]),
+        kernel!("radii_and_flags", view_meta::radii_and_flags::RadiiAndFlags, Line, [T T T s s s]),
+        kernel!("view_counts", view_meta::view_counts::ViewCounts, Line, [T T s s s]),
     ];
     let options = PlironOptions {
         sm_arch: Some(SmArch::new(sm, sm >= 70)),
