@@ -30,7 +30,9 @@ fi
 stage=$(mktemp -d)
 trap 'rm -rf "$stage"' EXIT
 cuda=cuda${NVRTC:+-nvrtc}
-features=envision4d-splat/$cuda,envision4d-model/$cuda,envision4d-train/$cuda
+# One feature set for every build below: cargo compiles a crate again for each set it sees,
+# and cubecl-cuda with LLVM behind it is the slowest of them.
+features=envision4d-splat/$cuda,envision4d-model/$cuda,envision4d-train/$cuda,envision4d-cli/$cuda
 cargo bench --workspace --no-run --bench raster --bench forward --bench train_step \
   --features "$features" 2>&1 | tee "$stage/build.log" | grep -E '^(error|warning: unused)' || true
 for name in raster forward train_step; do
@@ -39,7 +41,7 @@ for name in raster forward train_step; do
   cp "$bin" "$stage/$name"
 done
 if [ -n "${WITH_CLI:-}" ]; then
-  cargo build --release -p envision4d-cli --features "envision4d-cli/$cuda"
+  cargo build --release --workspace --features "$features" --bin envision4d
   cp "$CARGO_TARGET_DIR/release/envision4d" "$stage/envision4d"
 fi
 rm "$stage/build.log"
@@ -60,8 +62,8 @@ cp "$libdevice" "$stage/cuda/nvvm/libdevice/"
 rm -rf "$stage/wheel"
 
 # Every rasterizer kernel through that route for Hopper, here, before a lease is spent on it.
-CUDA_PATH=$stage/cuda cargo run --release -p envision4d-splat --features "envision4d-splat/$cuda" \
-  --example ptx_check -- 90
+cargo build --release --workspace --features "$features" --example ptx_check
+CUDA_PATH=$stage/cuda "$CARGO_TARGET_DIR/release/examples/ptx_check" 90
 mkdir -p "$PACK"
 # xz rather than zstd: every Linux has it (and Python's lzma reads it where it does not).
 (cd "$stage" && tar cf - -- *) | xz -T1 --lzma2=preset=9,dict=512MiB > "$PACK/cuda-bins.tar.xz.tmp"
