@@ -12,9 +12,13 @@
 # 2. CUDA=1 scripts/gpu_bench.sh with the packed benches (wgpu and cuda rows).
 # Vulkan loaders: where `ldconfig -p` lists no libvulkan and a .gl folder of loader .debs was
 # carried, they are unpacked first (the device tool's notes say how to fetch them).
+# Each phase runs under a timeout (DEMO_S, BENCH_S seconds) so one that hangs, say a kernel
+# the driver will not load, leaves the lease to the next and its log still comes back.
 set -uo pipefail
 cd "$(dirname "$0")/.."
 OUT=${OUT:-runs/device}
+DEMO_S=${DEMO_S:-120}
+BENCH_S=${BENCH_S:-420}
 PACK=${PACK:-runs/gpu-pack}
 mkdir -p "$OUT"
 bins=$(mktemp -d)
@@ -39,6 +43,12 @@ if ! ldconfig -p | grep -q libvulkan && [ -d .gl ]; then
   ldconfig
   say "Vulkan loaders unpacked from .gl"
 fi
+# Where the NVIDIA driver's Vulkan and EGL manifests sit outside the loaders' search paths.
+nv=/usr/local/nvidia/share
+if [ -z "${VK_DRIVER_FILES:-}" ] && [ -f "$nv/vulkan/icd.d/nvidia_icd.json" ]; then
+  export VK_DRIVER_FILES=$nv/vulkan/icd.d/nvidia_icd.json
+  say "VK_DRIVER_FILES=$VK_DRIVER_FILES"
+fi
 if command -v nvidia-smi > /dev/null; then
   nvidia-smi --query-gpu=name,memory.total,driver_version --format=csv,noheader >> "$log" 2>&1
 fi
@@ -47,7 +57,8 @@ if [ -x "$bins/envision4d" ]; then
   for backend in cuda wgpu; do
     say "demo --backend $backend"
     start=$(date +%s)
-    "$bins/envision4d" demo --backend "$backend" --seed 7 --out "$bins/demo-$backend" >> "$log" 2>&1
+    timeout "$DEMO_S" "$bins/envision4d" demo --backend "$backend" --seed 7 \
+      --out "$bins/demo-$backend" >> "$log" 2>&1
     say "demo --backend $backend: exit $?, $(($(date +%s) - start)) s"
   done
 fi
@@ -55,7 +66,7 @@ fi
 if [ -z "${SKIP_BENCH:-}" ]; then
   say "gpu_bench.sh"
   CUDA=1 OUT="$OUT" RASTER_BIN="$bins/raster" FORWARD_BIN="$bins/forward" \
-    STEP_BIN="$bins/train_step" scripts/gpu_bench.sh >> "$log" 2>&1
+    STEP_BIN="$bins/train_step" timeout "$BENCH_S" scripts/gpu_bench.sh >> "$log" 2>&1
   say "gpu_bench.sh: exit $?"
 fi
 rm -rf "$bins"
