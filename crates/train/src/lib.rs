@@ -5,8 +5,8 @@
 //!   annealing, frame weights) and the cosine learning rate.
 //! - [`step`]: the training step of either stage: `L_rgb` of the plan's renders through the
 //!   model's scene path, plus [`distill`]ation, then Adam; [`backbone`]: the backbone stage's
-//!   supervised loss; [`grad_clip`]: global-norm gradient clipping; [`freeze`]: the frozen
-//!   parameter groups.
+//!   supervised loss; [`report`]: what a step reports; [`grad_clip`]: global-norm gradient
+//!   clipping; [`freeze`]: the frozen parameter groups.
 //! - [`distill`]: self-distillation: label source, the frozen teacher, `L_cam` and `L_depth`.
 //! - [`batch`]: training batches and their ground-truth labels; [`dataset`]: the config's
 //!   dataset and splits; [`augment`]: playback augmentation of training windows.
@@ -28,6 +28,7 @@ pub mod log;
 pub mod memory;
 pub mod motion_signal;
 pub mod parallel;
+pub mod report;
 pub mod run;
 pub mod schedule;
 pub mod step;
