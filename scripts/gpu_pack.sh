@@ -69,9 +69,11 @@ mkdir -p "$PACK"
 (cd "$stage" && tar cf - -- *) | xz -T1 --lzma2=preset=9,dict=512MiB > "$PACK/cuda-bins.tar.xz.tmp"
 mv "$PACK/cuda-bins.tar.xz.tmp" "$PACK/cuda-bins.tar.xz"
 packed=$(stat -c %s "$PACK/cuda-bins.tar.xz")
-tree=$(git ls-files -z | xargs -0 stat -c %s | awk '{ s += $1 } END { print s }')
+# What travels with it: tracked and untracked-but-not-ignored files (deleted ones skipped).
+tree=$(git ls-files -z -co --exclude-standard | xargs -0 stat -c %s 2>/dev/null \
+  | awk '{ s += $1 } END { print s }')
 echo "gpu_pack: $PACK/cuda-bins.tar.xz, $((packed / 1048576)) MiB ($(cd "$stage" && ls | tr '\n' ' '))"
-echo "gpu_pack: with the tracked tree ($((tree / 1048576)) MiB) it travels as $(((packed + tree) / 1048576)) MiB of 64"
+echo "gpu_pack: with the working tree ($((tree / 1048576)) MiB) it travels as $(((packed + tree) / 1048576)) MiB of 64"
 if [ $((packed + tree)) -gt $CARRY_LIMIT ]; then
   echo "gpu_pack: over the device tool's 64 MiB; pack fewer binaries (without WITH_CLI)" >&2
   exit 1
