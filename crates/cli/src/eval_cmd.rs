@@ -5,23 +5,24 @@
 pub mod args;
 pub mod motion_images;
 pub mod shared;
+mod sweep;
 
 use crate::backend_choice::{BackendChoice, PrecisionChoice};
 use crate::report::gallery::Gallery;
 use crate::InputError;
-use anyhow::{Context, Result};
+use anyhow::Result;
 use args::{parse_crop, AlignChoice, LayoutChoice, Protocol, SplitChoice};
 use clap::Args;
 use envision4d_data::lock::DirLock;
-use envision4d_data::{atomic, ClipDataset, Split};
-use envision4d_eval::sweep::{mark_pareto, plan, summarize, with_horizon, SweepBase};
-use envision4d_eval::{evaluate_dataset, summary, EvalOptions, Report, SweepPoint};
+use envision4d_data::{atomic, Split};
+use envision4d_eval::sweep::with_horizon;
+use envision4d_eval::{evaluate_dataset, summary, EvalOptions, Report};
 use envision4d_losses::EvalCrop;
 use envision4d_model::checkpoint::checkpoint_config;
-use envision4d_model::{Envision4d, ModelConfig};
+use envision4d_model::ModelConfig;
 use envision4d_train::config::{DataConfig, DataLayout, Purpose};
 use indicatif::{ProgressBar, ProgressStyle};
-use shared::{backend_name, build_report, load_model, lpips_status, warm_up, Provenance};
+use shared::{build_report, load_model, lpips_status, warm_up, Provenance};
 use std::path::{Path, PathBuf};
 
 #[derive(Args, Debug)]
@@ -328,7 +329,9 @@ pub fn run(args: EvalArgs) -> Result<()> {
         );
     }
     let sweep = if args.sweep {
-        Some(run_sweep(&args, &setup, &model, &dataset, &indices, &opts)?)
+        Some(sweep::run_sweep(
+            &args, &setup, &model, &dataset, &indices, &opts,
+        )?)
     } else {
         None
     };
@@ -363,72 +366,6 @@ fn window_line(entry: &envision4d_data::ClipEntry, context: usize, future: usize
         ctx.join(","),
         scored.join(",")
     )
-}
-
-fn run_sweep(
-    args: &EvalArgs,
-    setup: &Setup,
-    model: &Envision4d,
-    dataset: &ClipDataset,
-    indices: &[usize],
-    opts: &EvalOptions,
-) -> Result<Vec<SweepPoint>> {
-    let cfg = &setup.model;
-    let base = SweepBase {
-        backend: backend_name(args.backend),
-        future_frames: model.future_frames(),
-        input_size: cfg.image_size,
-        patch_size: cfg.patch_size,
-        raster: opts.raster,
-    };
-    let names: Vec<String> = args
-        .sweep_backends
-        .iter()
-        .map(|&b| backend_name(b))
-        .collect();
-    let settings = plan(&base, &names);
-    let mut models: Vec<(BackendChoice, Envision4d)> = vec![(args.backend, model.clone())];
-    let progress = bar(settings.len() * indices.len());
-    let mut points = Vec::with_capacity(settings.len());
-    for s in &settings {
-        let choice = std::iter::once(args.backend)
-            .chain(args.sweep_backends.iter().copied())
-            .find(|&b| backend_name(b) == s.backend)
-            .context("sweep backend is one of the requested")?;
-        if !models.iter().any(|(b, _)| *b == choice) {
-            models.push((
-                choice,
-                load_model(cfg, &args.checkpoint, choice, args.precision)?,
-            ));
-        }
-        let full = &models
-            .iter()
-            .find(|(b, _)| *b == choice)
-            .context("sweep model loaded")?
-            .1;
-        let m = if s.horizon < base.future_frames {
-            // The sweep planned this horizon itself: out of range is a bug, not input.
-            with_horizon(full, s.horizon).map_err(|e| anyhow::anyhow!("internal: {e}"))?
-        } else {
-            full.clone()
-        };
-        // Every setting has new shapes or settings: warm JIT backends up per setting.
-        warm_up(&m, dataset, indices, &s.options(opts), choice)?;
-        let run = evaluate_dataset(&m, dataset, indices, &s.options(opts), |_| progress.inc(1))?;
-        if let Some(p) = summarize(s, &run.clips) {
-            progress.suspend(|| {
-                println!(
-                    "sweep {:<22} PSNR {:6.2} dB  SSIM {:.4}  | {:.3} s/clip (encoder {:.3} + decoder {:.3})",
-                    p.value,
-                    p.psnr, p.ssim, p.time_s, p.encoder_s, p.decoder_s
-                );
-            });
-            points.push(p);
-        }
-    }
-    progress.finish_and_clear();
-    mark_pareto(&mut points);
-    Ok(points)
 }
 
 fn print_summary(report: &Report, out: &Path) {

@@ -1,6 +1,7 @@
 //! The evaluation report: per-clip metrics, their mean over clips, and the whole report as
 //! JSON. The schema is documented key by key in `docs/EVAL.md` (a test keeps the two equal).
 
+pub use crate::sweep::{Knob, SweepPoint};
 use envision4d_splat::RasterConfig;
 use serde::{Deserialize, Serialize};
 
@@ -403,40 +404,4 @@ fn mean_depth(all: &[&DepthScore]) -> Option<DepthScore> {
             .map(|k| mean_opt(all.iter().map(|d| d.per_frame[k])))
             .collect(),
     })
-}
-
-/// Which knob a sweep point moved away from the base setting.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum Knob {
-    Base,
-    Horizon,
-    InputSize,
-    Backend,
-    AlphaMin,
-    TransmittanceMin,
-}
-
-/// One evaluated sweep point: the model's mean future-frame quality and time per clip.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct SweepPoint {
-    pub knob: Knob,
-    pub value: String,
-    pub backend: String,
-    pub horizon: usize,
-    pub input_size: [usize; 2],
-    pub alpha_min: f64,
-    pub transmittance_min: f64,
-    pub clips: usize,
-    pub psnr: f64,
-    pub ssim: f64,
-    pub lpips: Option<f64>,
-    pub rot_err_deg: Option<f64>,
-    pub trans_err: Option<f64>,
-    pub encoder_s: f64,
-    pub decoder_s: f64,
-    /// `encoder_s + decoder_s`, the x axis of the Pareto plot.
-    pub time_s: f64,
-    /// No other point is at least as fast and at least as good (PSNR), and better in one.
-    pub pareto: bool,
 }

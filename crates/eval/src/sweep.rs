@@ -9,10 +9,10 @@
 
 use crate::error::{EvalError, Result};
 use crate::report::{mean, mean_opt, ClipMetrics, Method};
-pub use crate::report::{Knob, SweepPoint};
 use crate::{EvalOptions, Extent};
 use envision4d_model::Envision4d;
 use envision4d_splat::RasterConfig;
+use serde::{Deserialize, Serialize};
 
 /// Input-size scales tried besides the base (sizes rounded to whole patches).
 pub const RESOLUTION_SCALES: [f64; 2] = [0.75, 0.5];
@@ -20,6 +20,42 @@ pub const RESOLUTION_SCALES: [f64; 2] = [0.75, 0.5];
 pub const ALPHA_MIN_VALUES: [f64; 2] = [0.02, 0.1];
 /// `transmittance_min` values tried besides the base (1e-4): compositing stops earlier.
 pub const TRANSMITTANCE_MIN_VALUES: [f64; 2] = [0.01, 0.1];
+
+/// Which knob a sweep point moved away from the base setting.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Knob {
+    Base,
+    Horizon,
+    InputSize,
+    Backend,
+    AlphaMin,
+    TransmittanceMin,
+}
+
+/// One evaluated sweep point: the model's mean future-frame quality and time per clip.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SweepPoint {
+    pub knob: Knob,
+    pub value: String,
+    pub backend: String,
+    pub horizon: usize,
+    pub input_size: [usize; 2],
+    pub alpha_min: f64,
+    pub transmittance_min: f64,
+    pub clips: usize,
+    pub psnr: f64,
+    pub ssim: f64,
+    pub lpips: Option<f64>,
+    pub rot_err_deg: Option<f64>,
+    pub trans_err: Option<f64>,
+    pub encoder_s: f64,
+    pub decoder_s: f64,
+    /// `encoder_s + decoder_s`, the x axis of the Pareto plot.
+    pub time_s: f64,
+    /// No other point is at least as fast and at least as good (PSNR), and better in one.
+    pub pareto: bool,
+}
 
 /// One setting to evaluate.
 #[derive(Debug, Clone, PartialEq)]
