@@ -10,6 +10,8 @@ use envision4d_eval::sweep::{mark_pareto, plan, summarize, with_horizon, SweepBa
 use envision4d_eval::{evaluate_dataset, EvalOptions, SweepPoint};
 use envision4d_model::Envision4d;
 
+/// Evaluates every setting the sweep plans (loading the model once per extra backend) and
+/// returns their points with the Pareto front marked.
 pub(super) fn run_sweep(
     args: &EvalArgs,
     setup: &Setup,
