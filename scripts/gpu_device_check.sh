@@ -1,15 +1,18 @@
 #!/usr/bin/env bash
-# The checks for a lent GPU machine, run from the repository root with runs/gpu-pack carried
-# along (scripts/gpu_pack.sh builds it where compiling is cheap). Writes its logs and the
-# benchmark tables under OUT, flat, so a tool that returns only a few top-level files gets
-# them all.
+# The checks for a lent GPU machine, run from the repository root with a pack from
+# scripts/gpu_pack.sh carried along (runs/gpu-pack/cuda-cli.tar.xz or cuda-benches.tar.xz;
+# one per call, as one call cannot carry both). Writes its logs and the benchmark tables
+# under OUT, flat, so a tool that returns only a few top-level files gets them all.
 #
 #   OUT=/some/dir scripts/gpu_device_check.sh
 #   SKIP_BENCH=1 scripts/gpu_device_check.sh     # the CUDA start-up checks only
+#   DEMO_BACKENDS=cuda scripts/gpu_device_check.sh
+#   PACK=runs/gpu-pack/cuda-benches.tar.xz scripts/gpu_device_check.sh   # that pack only
 #
-# 1. the binary (when packed) on --backend cuda: the demo end to end, which reports its own
-#    quality and timings, then the same on wgpu where a Vulkan driver is present;
-# 2. CUDA=1 scripts/gpu_bench.sh with the packed benches (wgpu and cuda rows).
+# What runs follows what was carried:
+# 1. the binary (cuda-cli): the demo end to end on each of DEMO_BACKENDS (cuda, then wgpu
+#    where a Vulkan driver is present), which reports its own quality and timings;
+# 2. the benches (cuda-benches): CUDA=1 scripts/gpu_bench.sh (wgpu and cuda rows).
 # Vulkan loaders: where `ldconfig -p` lists no libvulkan and a .gl folder of loader .debs was
 # carried, they are unpacked first (the device tool's notes say how to fetch them).
 # Each phase runs under a timeout (DEMO_S, BENCH_S seconds) so one that hangs, say a kernel
@@ -19,6 +22,7 @@ cd "$(dirname "$0")/.."
 OUT=${OUT:-runs/device}
 DEMO_S=${DEMO_S:-120}
 BENCH_S=${BENCH_S:-420}
+DEMO_BACKENDS=${DEMO_BACKENDS:-cuda wgpu}
 PACK=${PACK:-runs/gpu-pack}
 mkdir -p "$OUT"
 bins=$(mktemp -d)
@@ -26,12 +30,21 @@ log="$OUT/device-check.log"
 : > "$log"
 say() { echo "== $*" | tee -a "$log"; }
 
-if command -v xz > /dev/null; then
-  xz -dc "$PACK/cuda-bins.tar.xz" | tar xf - -C "$bins"
-else
-  python3 -c 'import lzma, sys, tarfile; tarfile.open(fileobj=lzma.open(sys.argv[1])).extractall(sys.argv[2])' \
-    "$PACK/cuda-bins.tar.xz" "$bins"
+# PACK: a pack, or a folder whose packs are all unpacked (a warm machine keeps ignored files
+# from an earlier call, so name the pack itself where that matters).
+if [ -f "$PACK" ]; then packs=("$PACK"); else packs=("$PACK"/cuda-*.tar.xz); fi
+if [ ! -f "${packs[0]}" ]; then
+  say "no pack under $PACK: run scripts/gpu_pack.sh here and carry one"
+  exit 2
 fi
+for pack in "${packs[@]}"; do
+  if command -v xz > /dev/null; then
+    xz -dc "$pack" | tar xf - -C "$bins"
+  else
+    python3 -c 'import lzma, sys, tarfile; tarfile.open(fileobj=lzma.open(sys.argv[1])).extractall(sys.argv[2])' \
+      "$pack" "$bins"
+  fi
+done
 say "unpacked: $(ls "$bins" | tr '\n' ' ')"
 # libdevice for CubeCL's LLVM route (scripts/gpu_pack.sh): the machine's toolkit if it has one.
 if [ ! -f "${CUDA_PATH:-/usr/local/cuda}/nvvm/libdevice/libdevice.10.bc" ]; then
@@ -54,7 +67,7 @@ if command -v nvidia-smi > /dev/null; then
 fi
 
 if [ -x "$bins/envision4d" ]; then
-  for backend in cuda wgpu; do
+  for backend in $DEMO_BACKENDS; do
     say "demo --backend $backend"
     start=$(date +%s)
     timeout "$DEMO_S" "$bins/envision4d" demo --backend "$backend" --seed 7 \
@@ -63,7 +76,7 @@ if [ -x "$bins/envision4d" ]; then
   done
 fi
 
-if [ -z "${SKIP_BENCH:-}" ]; then
+if [ -z "${SKIP_BENCH:-}" ] && [ -x "$bins/raster" ]; then
   say "gpu_bench.sh"
   CUDA=1 OUT="$OUT" RASTER_BIN="$bins/raster" FORWARD_BIN="$bins/forward" \
     STEP_BIN="$bins/train_step" timeout "$BENCH_S" scripts/gpu_bench.sh >> "$log" 2>&1

@@ -1,16 +1,18 @@
 #!/usr/bin/env bash
 # Builds the CUDA-enabled benches (and optionally the binary) here and packs them for a GPU
-# machine that should not spend its short lease compiling: one stripped, solid-compressed
-# tar (the binaries share LLVM, burn and our kernels, so one 512 MiB xz window stores them
-# once) at runs/gpu-pack/cuda-bins.tar.xz. docs/PERFORMANCE.md, "Building for CUDA".
+# machine that should not spend its short lease compiling: stripped, solid-compressed tars
+# (the benches share LLVM, burn and our kernels, so one 512 MiB xz window stores them once)
+# under runs/gpu-pack. docs/PERFORMANCE.md, "Building for CUDA".
 #
-#   scripts/gpu_pack.sh                 # raster, forward and train_step benches
-#   WITH_CLI=1 scripts/gpu_pack.sh      # and the envision4d binary (--backend cuda checks)
+#   scripts/gpu_pack.sh                 # cuda-benches.tar.xz: raster, forward and train_step
+#   WITH_CLI=1 scripts/gpu_pack.sh      # and cuda-cli.tar.xz: the envision4d binary
 #   NVRTC=1 scripts/gpu_pack.sh         # the `cuda-nvrtc` builds: kernels through NVRTC
 #                                       # rather than LLVM (the machine then needs libnvrtc)
 #
-# On the GPU machine, from the repository root with the pack carried along:
-#   scripts/gpu_device_check.sh         # unpacks it, runs the CUDA checks and gpu_bench.sh
+# Two packs, because all four binaries with the working tree are over what one device call
+# carries (64 MiB); each pack alone fits, and each is checked against it here. On the GPU
+# machine, from the repository root, one call per pack carried (the binary's first: short):
+#   scripts/gpu_device_check.sh         # unpacks what was carried, runs its checks
 #
 # Builds in their own target directory (CUDA_TARGET_DIR), so the everyday one keeps its
 # feature set and stays warm. Linking needs LLVM 23.1: tracel's bundle, or
@@ -38,14 +40,18 @@ cargo bench --workspace --no-run --bench raster --bench forward --bench train_st
 for name in raster forward train_step; do
   bin=$(sed -n "s/.*Executable benches\/$name\.rs (\(.*\))$/\1/p" "$stage/build.log" | tail -1)
   [ -x "$bin" ] || { echo "gpu_pack: the $name bench did not build (log: cargo above)" >&2; exit 1; }
-  cp "$bin" "$stage/$name"
+  mkdir -p "$stage/benches"
+  cp "$bin" "$stage/benches/$name"
 done
+packs=(benches)
 if [ -n "${WITH_CLI:-}" ]; then
   cargo build --release --workspace --features "$features" --bin envision4d
-  cp "$CARGO_TARGET_DIR/release/envision4d" "$stage/envision4d"
+  mkdir -p "$stage/cli"
+  cp "$CARGO_TARGET_DIR/release/envision4d" "$stage/cli/envision4d"
+  packs+=(cli)
 fi
 rm "$stage/build.log"
-strip "$stage"/*
+strip "$stage"/*/*
 
 # CubeCL's LLVM route links NVIDIA's libdevice (nvvm/libdevice/libdevice.10.bc, found under
 # CUDA_PATH) into any kernel that calls a math function PTX has no instruction for: our
@@ -57,25 +63,46 @@ if [ ! -f "$libdevice" ]; then
   python3 -c 'import sys, zipfile, glob; zipfile.ZipFile(glob.glob(sys.argv[1] + "/*.whl")[0]).extract("nvidia/cuda_nvcc/nvvm/libdevice/libdevice.10.bc", sys.argv[1])' "$stage/wheel"
   libdevice=$stage/wheel/nvidia/cuda_nvcc/nvvm/libdevice/libdevice.10.bc
 fi
-mkdir -p "$stage/cuda/nvvm/libdevice"
-cp "$libdevice" "$stage/cuda/nvvm/libdevice/"
+mkdir -p "$stage/libdevice"
+cp "$libdevice" "$stage/libdevice/"
 rm -rf "$stage/wheel"
 
 # Every rasterizer kernel through that route for Hopper, here, before a lease is spent on it.
 cargo build --release --workspace --features "$features" --example ptx_check
-CUDA_PATH=$stage/cuda "$CARGO_TARGET_DIR/release/examples/ptx_check" 90
+mkdir -p "$stage/check/nvvm/libdevice"
+cp "$stage/libdevice/libdevice.10.bc" "$stage/check/nvvm/libdevice/"
+CUDA_PATH=$stage/check "$CARGO_TARGET_DIR/release/examples/ptx_check" 90
 mkdir -p "$PACK"
-# xz rather than zstd: every Linux has it (and Python's lzma reads it where it does not).
-(cd "$stage" && tar cf - -- *) | xz -T1 --lzma2=preset=9,dict=512MiB > "$PACK/cuda-bins.tar.xz.tmp"
-mv "$PACK/cuda-bins.tar.xz.tmp" "$PACK/cuda-bins.tar.xz"
-packed=$(stat -c %s "$PACK/cuda-bins.tar.xz")
-# What travels with it: tracked and untracked-but-not-ignored files (deleted ones skipped).
+# What travels with a pack: tracked and untracked-not-ignored files (deleted ones skipped),
+# and, with the benches (their wgpu rows), the Vulkan loaders in .gl when present.
 tree=$(git ls-files -z -co --exclude-standard | xargs -0 stat -c %s 2>/dev/null \
   | awk '{ s += $1 } END { print s }')
-echo "gpu_pack: $PACK/cuda-bins.tar.xz, $((packed / 1048576)) MiB ($(cd "$stage" && ls | tr '\n' ' '))"
-echo "gpu_pack: with the working tree ($((tree / 1048576)) MiB) it travels as $(((packed + tree) / 1048576)) MiB of 64"
-if [ $((packed + tree)) -gt $CARRY_LIMIT ]; then
-  echo "gpu_pack: over the device tool's 64 MiB; pack fewer binaries (without WITH_CLI)" >&2
-  exit 1
-fi
-echo "gpu_pack: on the GPU machine, with $PACK carried (git ignores it): OUT=<dir> scripts/gpu_device_check.sh"
+gl=$(du -cb .gl 2>/dev/null | tail -1 | cut -f1)
+# Both packs at once (one core each); xz rather than zstd: every Linux has it (and Python's
+# lzma reads it where it does not).
+pids=()
+for p in "${packs[@]}"; do
+  mkdir -p "$stage/$p/cuda/nvvm/libdevice"
+  cp "$stage/libdevice/libdevice.10.bc" "$stage/$p/cuda/nvvm/libdevice/"
+  (cd "$stage/$p" && tar cf - -- *) | xz -T1 --lzma2=preset=9,dict=512MiB \
+    > "$PACK/cuda-$p.tar.xz.tmp" &
+  pids+=($!)
+done
+for pid in "${pids[@]}"; do wait "$pid"; done
+status=0
+for p in "${packs[@]}"; do
+  mv "$PACK/cuda-$p.tar.xz.tmp" "$PACK/cuda-$p.tar.xz"
+  packed=$(stat -c %s "$PACK/cuda-$p.tar.xz")
+  extra=$tree
+  [ "$p" = benches ] && extra=$((tree + ${gl:-0}))
+  echo "gpu_pack: $PACK/cuda-$p.tar.xz, $((packed / 1048576)) MiB ($(cd "$stage/$p" && ls | tr '\n' ' '))"
+  echo "gpu_pack: with the working tree it travels as $(((packed + extra) / 1048576)) MiB of 64"
+  if [ $((packed + extra)) -gt $CARRY_LIMIT ]; then
+    echo "gpu_pack: cuda-$p.tar.xz is over the device tool's 64 MiB with the tree" >&2
+    status=1
+  fi
+done
+rm -f "$PACK/cuda-bins.tar.xz"
+echo "gpu_pack: on the GPU machine, one call per pack, carrying it (git ignores runs/):"
+echo "gpu_pack:   OUT=<dir> scripts/gpu_device_check.sh"
+exit $status
