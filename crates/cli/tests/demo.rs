@@ -3,6 +3,9 @@
 //! lists files that exist, a seed repeats its clip byte for byte, a missing checkpoint is an
 //! input error naming the path, and with no arguments the shipped model runs.
 
+#[path = "../../../tests/support/paths.rs"]
+mod paths;
+
 use burn::tensor::Device;
 use envision4d_model::checkpoint::save_checkpoint;
 use envision4d_model::Envision4d;
@@ -34,9 +37,7 @@ const METHODS: [&str; 8] = [
 const WROTE: &str = "wrote:";
 
 fn repo(path: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../..")
-        .join(path)
+    paths::manifest_dir().join("../..").join(path)
 }
 
 fn s(p: &Path) -> &str {

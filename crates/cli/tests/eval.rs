@@ -2,6 +2,9 @@
 //! (JSON schema of docs/EVAL.md, Markdown, decodable PNGs, stdout summary), and clear
 //! errors (exit code 2, the path named) for bad checkpoints and data folders.
 
+#[path = "../../../tests/support/paths.rs"]
+mod paths;
+
 use burn::tensor::Device;
 use envision4d_model::checkpoint::save_checkpoint;
 use envision4d_model::Envision4d;
@@ -16,9 +19,7 @@ const FRAMES: &str = "4";
 const SIZE: &str = "56x84";
 
 fn repo(path: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../..")
-        .join(path)
+    paths::manifest_dir().join("../..").join(path)
 }
 
 fn envision4d(args: &[&str]) -> Output {

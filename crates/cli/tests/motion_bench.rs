@@ -3,13 +3,14 @@
 //! the motion metrics, and the table. Guards `scripts/motion_bench.sh` and
 //! `scripts/motion_table.py` against rotting while the full benchmark stays out of CI.
 
+#[path = "../../../tests/support/paths.rs"]
+mod paths;
+
 use std::path::PathBuf;
 use std::process::Command;
 
 fn repo(path: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../..")
-        .join(path)
+    paths::manifest_dir().join("../..").join(path)
 }
 
 /// Guards the benchmark pipeline: every stage runs with the binary under test, each

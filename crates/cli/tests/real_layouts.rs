@@ -119,8 +119,7 @@ fn storm_tree_evaluates_with_lidar_and_pairs() {
     let root = dir.path().join("waymo");
     // The checkpoint predicts T_f = 6: its windows are 8 frames (9 files: range(min, max)).
     storm_split(&root, "validation", 9, 2);
-    let ckpt = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../../models/envision4d-synth-tiny.safetensors");
+    let ckpt = common::paths::manifest_dir().join("../../models/envision4d-synth-tiny.safetensors");
     let out = dir.path().join("eval");
     let list = |protocol: &str| {
         let o = bin(&[
@@ -256,8 +255,7 @@ fn nuscenes_tree_trains_on_mini_train_and_evaluates_mini_val() {
     assert_eq!(dry.status.code(), Some(2), "{}", text(&dry));
     assert!(text(&dry).contains("data.split"), "{}", text(&dry));
 
-    let ckpt = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../../models/envision4d-synth-tiny.safetensors");
+    let ckpt = common::paths::manifest_dir().join("../../models/envision4d-synth-tiny.safetensors");
     let out = dir.path().join("eval");
     // The checkpoint predicts T_f = 6 (8-frame windows; mini_val has 8 keyframes).
     let o = bin(&[

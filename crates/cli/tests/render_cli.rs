@@ -1,12 +1,14 @@
 //! `envision4d render --export-predictions` end to end: parity with the reference through the
 //! binary, real frame folders, and bad inputs (exit code 2, named problem).
 
+#[path = "../../../tests/support/paths.rs"]
+mod paths;
+
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
 fn fixture() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../../../shared/fixtures/envision4d_tiny.safetensors")
+    paths::manifest_dir().join("../../../shared/fixtures/envision4d_tiny.safetensors")
 }
 
 fn render(args: &[&str]) -> Output {
@@ -220,7 +222,7 @@ fn frame_folder_and_bad_inputs() {
 /// parameter count, and a typo in a config is an exit-2 error naming the key.
 #[test]
 fn train_dry_run_and_config_typo() {
-    let cfg = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../configs/synth-tiny.toml");
+    let cfg = paths::manifest_dir().join("../../configs/synth-tiny.toml");
     let o = Command::new(env!("CARGO_BIN_EXE_envision4d"))
         .args(["train", "--config", cfg.to_str().unwrap(), "--dry-run"])
         .output()
@@ -268,15 +270,13 @@ fn waymo_tree_config(dir: &Path, splits: &[&str], last: u32) -> String {
             write_png(&images.join(format!("{t:06}_0.png")), 84, 56, t as u8);
         }
     }
-    std::fs::read_to_string(
-        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../configs/synth-tiny.toml"),
-    )
-    .unwrap()
-    .replace("layout = \"synth\"", "layout = \"waymo\"")
-    .replace(
-        "root = \"data/synth-train\"",
-        &format!("root = {:?}", dir.join("waymo")),
-    )
+    std::fs::read_to_string(paths::manifest_dir().join("../../configs/synth-tiny.toml"))
+        .unwrap()
+        .replace("layout = \"synth\"", "layout = \"waymo\"")
+        .replace(
+            "root = \"data/synth-train\"",
+            &format!("root = {:?}", dir.join("waymo")),
+        )
 }
 
 /// Guards the Waymo training split: `--dry-run` says what the run will read (split, windows,
@@ -324,8 +324,7 @@ fn eval_lists_the_release_windows() {
     let dir = tempfile::tempdir().unwrap();
     let cfg = dir.path().join("cfg.toml");
     std::fs::write(&cfg, waymo_tree_config(dir.path(), &["validation"], 40)).unwrap();
-    let ckpt = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../../models/envision4d-synth-tiny.safetensors");
+    let ckpt = paths::manifest_dir().join("../../models/envision4d-synth-tiny.safetensors");
     let out = dir.path().join("eval-out");
     let list = |extra: &[&str]| {
         let mut args = vec![

@@ -3,6 +3,9 @@
 //! a written PLY renders through `envision4d splat` to our own render of that step, and bad
 //! checkpoints, frame folders and options exit with code 2 naming the problem.
 
+#[path = "../../../tests/support/paths.rs"]
+mod paths;
+
 use burn::tensor::Device;
 use envision4d_model::checkpoint::save_checkpoint;
 use envision4d_model::Envision4d;
@@ -63,7 +66,7 @@ fn inputs() -> &'static Inputs {
     static INPUTS: OnceLock<Inputs> = OnceLock::new();
     INPUTS.get_or_init(|| {
         let dir = scratch();
-        let cfg_path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../configs/synth-tiny.toml");
+        let cfg_path = paths::manifest_dir().join("../../configs/synth-tiny.toml");
         let cfg = envision4d_train::load(&cfg_path).unwrap().model;
         assert!(
             cfg.future_frames >= FUTURE,

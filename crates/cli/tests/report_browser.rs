@@ -3,6 +3,9 @@
 //! or a reference to the network, and keeps a screenshot of the whole page
 //! (`report-screenshot.png` in cargo's test temp folder, path printed).
 
+#[path = "../../../tests/support/paths.rs"]
+mod paths;
+
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
@@ -11,9 +14,7 @@ const CHROMIUM: &str = "/usr/bin/chromium";
 const SHIPPED_MODEL: &str = "models/envision4d-synth-tiny.safetensors";
 
 fn repo(path: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../..")
-        .join(path)
+    paths::manifest_dir().join("../..").join(path)
 }
 
 fn text(o: &Output) -> String {

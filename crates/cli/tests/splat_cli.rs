@@ -1,6 +1,9 @@
 //! `envision4d splat` end to end: real files in, images out, and every bad-input case exits
 //! with code 2 and a message naming the problem, without writing the output.
 
+#[path = "../../../tests/support/paths.rs"]
+mod paths;
+
 use burn::tensor::Device;
 use envision4d_splat::ply::{write_ply, PlyGaussians, RenderParams};
 use envision4d_splat::testkit::{random_scene, SceneSpec};
@@ -13,9 +16,7 @@ fn bin() -> Command {
 }
 
 fn repo_file(rel: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../..")
-        .join(rel)
+    paths::manifest_dir().join("../..").join(rel)
 }
 
 fn splat(args: &[&str]) -> Output {

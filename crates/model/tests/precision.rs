@@ -6,6 +6,8 @@
 #[path = "parity/fixture.rs"]
 #[allow(dead_code)]
 mod fixture;
+#[path = "../../../tests/support/paths.rs"]
+mod paths;
 
 use burn::nn::LayerNormConfig;
 use burn::tensor::{DType, Device, Distribution, Tensor};

@@ -23,6 +23,9 @@
 //! RSS, and the device memory pool's reserved bytes after the step (GPU backends; `nan` on
 //! the CPU, whose memory is the RSS).
 
+#[path = "../../../tests/support/paths.rs"]
+mod paths;
+
 use envision4d_data::HostClip;
 use envision4d_model::bench::{arg, device_reserved_gib, peak_rss_gib};
 use envision4d_train::batch::Batch;
@@ -60,7 +63,7 @@ fn main() {
     let args: Vec<String> = std::env::args().collect();
     let path = arg(&args, "--config").unwrap_or_else(|| "configs/waymo.toml".into());
     // Benches run from the crate directory; configs live at the workspace root.
-    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
+    let root = paths::manifest_dir().join("../..");
     let file = if Path::new(&path).is_file() {
         Path::new(&path).to_path_buf()
     } else {

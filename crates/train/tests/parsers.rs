@@ -5,6 +5,8 @@
 
 #[path = "../../../tests/support/mutate.rs"]
 mod mutate;
+#[path = "../../../tests/support/paths.rs"]
+mod paths;
 
 use envision4d_train::load::parse;
 use envision4d_train::schedule::Schedule;
@@ -27,10 +29,7 @@ fn shipped() -> &'static [(PathBuf, String)] {
             }
         }
         let mut out = Vec::new();
-        walk(
-            &Path::new(env!("CARGO_MANIFEST_DIR")).join("../../configs"),
-            &mut out,
-        );
+        walk(&paths::manifest_dir().join("../../configs"), &mut out);
         out.sort();
         out
     })

@@ -4,6 +4,9 @@
 
 #![allow(dead_code)] // each test file uses its own subset
 
+#[path = "../../../../tests/support/paths.rs"]
+pub mod paths;
+
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
@@ -55,7 +58,7 @@ pub fn synth(dir: &Path, name: &str, clips: usize, frames: usize) -> PathBuf {
 
 /// `configs/synth-tiny.toml` as a table, trained from random init with nothing frozen.
 pub fn shipped_tiny() -> toml::Table {
-    let shipped = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../configs/synth-tiny.toml");
+    let shipped = paths::manifest_dir().join("../../configs/synth-tiny.toml");
     let text = std::fs::read_to_string(shipped).unwrap();
     let mut cfg: toml::Table = toml::from_str(&text).unwrap();
     cfg.remove("init_checkpoint");

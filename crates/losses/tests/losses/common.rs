@@ -8,14 +8,11 @@ use envision4d_losses::lpips::{QuantizedKeys, WeightKeys};
 use envision4d_losses::{HostImages, LpipsNet, LpipsWeights};
 
 /// `shared/fixtures/metrics.safetensors`, beside the clone (CI layout).
-pub const FIXTURE: &str = concat!(
-    env!("CARGO_MANIFEST_DIR"),
-    "/../../../shared/fixtures/metrics.safetensors"
-);
+pub const FIXTURE: &str = "../../../shared/fixtures/metrics.safetensors";
 
 /// The fixture path; panics (fails the test) with the path when it is missing.
 pub fn fixture() -> PathBuf {
-    let p = PathBuf::from(FIXTURE);
+    let p = crate::paths::manifest_dir().join(FIXTURE);
     assert!(
         p.is_file(),
         "metrics fixture missing: {} (expected shared/fixtures beside the clone)",

@@ -228,7 +228,7 @@ fn write_pth(
     let st = dir.join(format!("{name}.safetensors"));
     write_safetensors(&st, tensors);
     let pth = dir.join(format!("{name}.pth"));
-    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scripts/make_lightning_ckpt.py");
+    let script = crate::paths::manifest_dir().join("../../scripts/make_lightning_ckpt.py");
     let ok = std::process::Command::new("python3")
         .arg(script)
         .arg(&st)

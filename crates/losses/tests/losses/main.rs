@@ -7,5 +7,7 @@ mod edge;
 mod gradients;
 mod lpips;
 mod parity;
+#[path = "../../../../tests/support/paths.rs"]
+mod paths;
 mod properties;
 mod ssim_loss;

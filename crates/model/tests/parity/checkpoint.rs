@@ -13,7 +13,7 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 fn script() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../scripts/make_lightning_ckpt.py")
+    crate::paths::manifest_dir().join("../../scripts/make_lightning_ckpt.py")
 }
 
 fn pose_matches(model: &Envision4d, fx: &Fixture, device: &Device) {

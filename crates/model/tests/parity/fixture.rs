@@ -13,7 +13,7 @@ pub struct Fixture {
 impl Fixture {
     /// Opens `../shared/fixtures/<name>`; a missing file fails the test, naming the path.
     pub fn open(name: &str) -> Self {
-        let path = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        let path = crate::paths::manifest_dir()
             .join("../../../shared/fixtures")
             .join(name);
         let bytes = std::fs::read(&path)

@@ -7,3 +7,5 @@ mod checkpoint;
 mod fixture;
 mod heads;
 mod layers;
+#[path = "../../../../tests/support/paths.rs"]
+mod paths;

@@ -14,7 +14,7 @@ pub const W: usize = 84;
 pub const FRAMES: usize = 4;
 
 pub fn config_path(name: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+    crate::paths::manifest_dir()
         .join("../../configs")
         .join(name)
 }

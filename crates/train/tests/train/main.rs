@@ -8,6 +8,8 @@ mod eval;
 mod grad_norms;
 mod memory;
 mod motion_signal;
+#[path = "../../../../tests/support/paths.rs"]
+mod paths;
 mod pose;
 mod run;
 mod schedule;
