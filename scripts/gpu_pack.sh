@@ -74,7 +74,7 @@ cp "$stage/libdevice/libdevice.10.bc" "$stage/check/nvvm/libdevice/"
 CUDA_PATH=$stage/check "$CARGO_TARGET_DIR/release/examples/ptx_check" 90
 mkdir -p "$PACK"
 # What travels with a pack: tracked and untracked-not-ignored files (deleted ones skipped),
-# and, with the benches (their wgpu rows), the Vulkan loaders in .gl when present.
+# and the Vulkan loaders in .gl when present (the wgpu demo and rows need them).
 tree=$(git ls-files -z -co --exclude-standard | xargs -0 stat -c %s 2>/dev/null \
   | awk '{ s += $1 } END { print s }')
 gl=$(du -cb .gl 2>/dev/null | tail -1 | cut -f1)
@@ -93,8 +93,7 @@ status=0
 for p in "${packs[@]}"; do
   mv "$PACK/cuda-$p.tar.xz.tmp" "$PACK/cuda-$p.tar.xz"
   packed=$(stat -c %s "$PACK/cuda-$p.tar.xz")
-  extra=$tree
-  [ "$p" = benches ] && extra=$((tree + ${gl:-0}))
+  extra=$((tree + ${gl:-0}))
   echo "gpu_pack: $PACK/cuda-$p.tar.xz, $((packed / 1048576)) MiB ($(cd "$stage/$p" && ls | tr '\n' ' '))"
   echo "gpu_pack: with the working tree it travels as $(((packed + extra) / 1048576)) MiB of 64"
   if [ $((packed + extra)) -gt $CARRY_LIMIT ]; then
@@ -103,6 +102,8 @@ for p in "${packs[@]}"; do
   fi
 done
 rm -f "$PACK/cuda-bins.tar.xz"
-echo "gpu_pack: on the GPU machine, one call per pack, carrying it (git ignores runs/):"
-echo "gpu_pack:   OUT=<dir> scripts/gpu_device_check.sh"
+echo "gpu_pack: on the GPU machine, one call per pack, carrying it and .gl (git ignores both):"
+for p in "${packs[@]}"; do
+  echo "gpu_pack:   OUT=<dir> PACK=$PACK/cuda-$p.tar.xz scripts/gpu_device_check.sh"
+done
 exit $status
