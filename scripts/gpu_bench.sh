@@ -76,13 +76,13 @@ if [ -z "${SKIP_MODEL:-}" ]; then
     echo "|---|---|---|---|---|---|"
   } >> "$OUT/model.md.tmp"
   # One table row from a bench's `*_s=... peak_rss_gib=... device_reserved_gib=...` line
-  # (NaN where the device lacks a precision).
+  # (NaN where the device lacks a precision; "failed" where the bench printed none).
   row() {
     local secs rss dev
-    secs=$(echo "$3" | sed -n 's/.*_s=\([0-9.NaNfailed]*\).*/\1/p')
+    secs=$(echo "$3" | sed -n 's/.*_s=\([0-9.NaN]*\).*/\1/p')
     rss=$(echo "$3" | sed -n 's/.*peak_rss_gib=\([0-9.NaN]*\).*/\1/p')
     dev=$(echo "$3" | sed -n 's/.*device_reserved_gib=\([0-9.a-zA-Z]*\).*/\1/p')
-    echo "| $1 | $MODEL_PRESET, $MODEL_IMAGE | $2 | $secs | $rss | $dev |" >> "$OUT/model.md.tmp"
+    echo "| $1 | $MODEL_PRESET, $MODEL_IMAGE | $2 | ${secs:-failed} | $rss | $dev |" >> "$OUT/model.md.tmp"
   }
   for b in ${BACKENDS//,/ }; do
     for mode in $MODEL_MODES; do
@@ -90,14 +90,14 @@ if [ -z "${SKIP_MODEL:-}" ]; then
       if [ "$mode" = train ]; then
         line=$("$STEP" --config configs/waymo.toml --preset "$MODEL_PRESET" --image "$MODEL_IMAGE" \
           --batch 1 --device "$b" --repeats 1 | tee -a /dev/stderr | grep -E '^train_step_s=' | tail -1) \
-          || line="failed_s=failed"
+          || line=""
         row "$b" "$mode" "$line"
       else
         for p in $PRECISIONS; do
           echo "== model $MODEL_PRESET at $MODEL_IMAGE, forward, aggregator in $p, $b"
           line=$("$FWD" --preset "$MODEL_PRESET" --image "$MODEL_IMAGE" --device "$b" \
             --mode "$mode" --precision "$p" --repeats 1 | tee -a /dev/stderr |
-            grep -E '^forward_warm_s=' | tail -1) || line="failed_s=failed"
+            grep -E '^forward_warm_s=' | tail -1) || line=""
           row "$b" "$mode ($p)" "$line"
         done
       fi

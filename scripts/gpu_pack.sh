@@ -63,15 +63,13 @@ if [ ! -f "$libdevice" ]; then
   python3 -c 'import sys, zipfile, glob; zipfile.ZipFile(glob.glob(sys.argv[1] + "/*.whl")[0]).extract("nvidia/cuda_nvcc/nvvm/libdevice/libdevice.10.bc", sys.argv[1])' "$stage/wheel"
   libdevice=$stage/wheel/nvidia/cuda_nvcc/nvvm/libdevice/libdevice.10.bc
 fi
-mkdir -p "$stage/libdevice"
-cp "$libdevice" "$stage/libdevice/"
+mkdir -p "$stage/cuda/nvvm/libdevice"
+cp "$libdevice" "$stage/cuda/nvvm/libdevice/"
 rm -rf "$stage/wheel"
 
 # Every rasterizer kernel through that route for Hopper, here, before a lease is spent on it.
 cargo build --release --workspace --features "$features" --example ptx_check
-mkdir -p "$stage/check/nvvm/libdevice"
-cp "$stage/libdevice/libdevice.10.bc" "$stage/check/nvvm/libdevice/"
-CUDA_PATH=$stage/check "$CARGO_TARGET_DIR/release/examples/ptx_check" 90
+CUDA_PATH=$stage/cuda "$CARGO_TARGET_DIR/release/examples/ptx_check" 90
 mkdir -p "$PACK"
 # What travels with a pack: tracked and untracked-not-ignored files (deleted ones skipped),
 # and the Vulkan loaders in .gl when present (the wgpu demo and rows need them).
@@ -82,9 +80,8 @@ gl=$(du -cb .gl 2>/dev/null | tail -1 | cut -f1)
 # lzma reads it where it does not).
 pids=()
 for p in "${packs[@]}"; do
-  mkdir -p "$stage/$p/cuda/nvvm/libdevice"
-  cp "$stage/libdevice/libdevice.10.bc" "$stage/$p/cuda/nvvm/libdevice/"
-  (cd "$stage/$p" && tar cf - -- *) | xz -T1 --lzma2=preset=9,dict=512MiB \
+  # Each pack holds the one staged libdevice beside its binaries.
+  tar cf - -C "$stage" cuda -C "$stage/$p" . | xz -T1 --lzma2=preset=9,dict=512MiB \
     > "$PACK/cuda-$p.tar.xz.tmp" &
   pids+=($!)
 done
@@ -94,14 +91,13 @@ for p in "${packs[@]}"; do
   mv "$PACK/cuda-$p.tar.xz.tmp" "$PACK/cuda-$p.tar.xz"
   packed=$(stat -c %s "$PACK/cuda-$p.tar.xz")
   extra=$((tree + ${gl:-0}))
-  echo "gpu_pack: $PACK/cuda-$p.tar.xz, $((packed / 1048576)) MiB ($(cd "$stage/$p" && ls | tr '\n' ' '))"
+  echo "gpu_pack: $PACK/cuda-$p.tar.xz, $((packed / 1048576)) MiB (cuda $(cd "$stage/$p" && ls | tr '\n' ' '))"
   echo "gpu_pack: with the working tree it travels as $(((packed + extra) / 1048576)) MiB of 64"
   if [ $((packed + extra)) -gt $CARRY_LIMIT ]; then
     echo "gpu_pack: cuda-$p.tar.xz is over the device tool's 64 MiB with the tree" >&2
     status=1
   fi
 done
-rm -f "$PACK/cuda-bins.tar.xz"
 echo "gpu_pack: on the GPU machine, one call per pack, carrying it and .gl (git ignores both):"
 for p in "${packs[@]}"; do
   echo "gpu_pack:   OUT=<dir> PACK=$PACK/cuda-$p.tar.xz scripts/gpu_device_check.sh"
