@@ -53,6 +53,17 @@ pub fn sort_pairs(
     Ok((Tensor::from_dispatch(k), Tensor::from_dispatch(v)))
 }
 
+/// Whether an exclusive scan's output wrapped past `u32::MAX` (its true total, or a running
+/// sum before it, reached 2^32): some element is below the one before it. One small readback
+/// on CubeCL backends; the rasterizer runs the same check, without the readback, where a
+/// view's intersections could reach 2^32.
+pub fn scan_wrapped(offsets: Tensor<1, Int>) -> Result<bool, PrimitiveError> {
+    check_dtype("scan_wrapped", &offsets)?;
+    Ok(<Dispatch as SplatOps>::splat_scan_wrapped(
+        offsets.into_dispatch(),
+    ))
+}
+
 /// Exclusive prefix sum with the total appended: `[a, b, c]` → `[0, a, a+b, a+b+c]`, summed
 /// as u32 (wrapping). A device scan on CubeCL backends.
 pub fn exclusive_scan(values: Tensor<1, Int>) -> Result<Tensor<1, Int>, PrimitiveError> {

@@ -187,4 +187,8 @@ impl<B: SplatOps, C: CheckpointStrategy> SplatOps for Autodiff<B, C> {
     fn splat_exclusive_scan(values: IntTensor<Self>) -> IntTensor<Self> {
         B::splat_exclusive_scan(values)
     }
+
+    fn splat_scan_wrapped(offsets: IntTensor<Self>) -> bool {
+        B::splat_scan_wrapped(offsets)
+    }
 }

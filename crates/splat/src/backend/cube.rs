@@ -6,6 +6,7 @@ use super::{host, host_sort, SplatGrads, SplatOps};
 use crate::config::RasterConfig;
 use crate::kernels::launch::{self, Inputs};
 use crate::kernels::launch_backward;
+use crate::kernels::readback::read_u32s;
 use crate::kernels::sort;
 use crate::views::{HostCameras, ViewSets};
 use burn::backend::tensor::{FloatTensor, IntTensor};
@@ -89,6 +90,20 @@ impl SplatOps for CubeBackend {
         let n = values.shape().num_elements();
         let dtype = values.dtype();
         sort::retype(sort::exclusive_scan(&words(values), n, n + 1), dtype)
+    }
+
+    fn splat_scan_wrapped(offsets: IntTensor<Self>) -> bool {
+        if !is_32bit(&offsets) {
+            return host_sort::scan_wrapped::<Self>(offsets);
+        }
+        let n = offsets.shape().num_elements();
+        if n < 2 {
+            return false;
+        }
+        let words = words(offsets);
+        let flag = launch::zeros_u32(&words, 1);
+        sort::flag_wrapped(&words, n, &flag, 0);
+        read_u32s(flag)[0] != 0
     }
 }
 

@@ -22,9 +22,21 @@ fn back<B: Backend>(v: Vec<i64>, like: &IntTensor<B>) -> IntTensor<B> {
     )
 }
 
+/// Whether `t` stores i32, whose values are 32-bit patterns read as signed.
+fn like_i32<B: Backend>(t: &IntTensor<B>) -> bool {
+    t.dtype() == burn::tensor::DType::I32
+}
+
 /// The low 32 bits of `x`, as the device reads a 32-bit integer.
 fn bits32(x: i64) -> u32 {
     x as u32
+}
+
+/// Whether the exclusive scan `offsets` wrapped past `u32::MAX`: some element (as the
+/// device reads it, 32 bits) below the one before it.
+pub fn scan_wrapped<B: Backend>(offsets: IntTensor<B>) -> bool {
+    let v = to_host::<B>(offsets);
+    v.windows(2).any(|w| bits32(w[1]) < bits32(w[0]))
 }
 
 pub fn sort_pairs<B: Backend>(
@@ -52,10 +64,17 @@ pub fn exclusive_scan<B: Backend>(values: IntTensor<B>) -> IntTensor<B> {
     let mut out = Vec::with_capacity(v.len() + 1);
     let mut total = 0u32;
     out.push(0);
+    // An i32 tensor holds the sums' 32-bit patterns, as the device writes them (a sum past
+    // i32::MAX reads negative there); i64 would refuse the conversion otherwise.
+    let signed = like_i32::<B>(&values);
     for &x in &v {
         // The device sums in u32 and wraps; so does this.
         total = total.wrapping_add(bits32(x));
-        out.push(i64::from(total));
+        out.push(if signed {
+            i64::from(total as i32)
+        } else {
+            i64::from(total)
+        });
     }
     back::<B>(out, &values)
 }

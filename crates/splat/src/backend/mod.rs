@@ -111,6 +111,13 @@ pub trait SplatOps: Backend {
     fn splat_exclusive_scan(values: IntTensor<Self>) -> IntTensor<Self> {
         host_sort::exclusive_scan::<Self>(values)
     }
+
+    /// Whether an exclusive scan's output (as [`SplatOps::splat_exclusive_scan`] returns
+    /// it) wrapped past `u32::MAX`: some element below the one before it. Reads back one
+    /// flag on CubeCL backends.
+    fn splat_scan_wrapped(offsets: IntTensor<Self>) -> bool {
+        host_sort::scan_wrapped::<Self>(offsets)
+    }
 }
 
 impl SplatOps for burn::backend::Flex {}

@@ -6,7 +6,7 @@
 //! intersection): CubeCL does not support zero-size dispatches, and the zero-filled outputs
 //! are already the right answer.
 
-use super::binning::{bins_of_view, order_view, DepthOrder, DeviceBins};
+use super::binning::{bins_of_view, may_wrap, order_view, DepthOrder, DeviceBins};
 use super::math::CAM_LANES;
 use super::project_forward::{project_forward, META_LANES, RECORD_LANES};
 use super::rasterize_forward::{rasterize_forward, OUT_CHANNELS, TILE};
@@ -55,7 +55,7 @@ fn upload_f32(like: &CubeTensor, v: Vec<f32>) -> CubeTensor {
 }
 
 /// A zero-filled u32 buffer of `len` elements.
-fn zeros_u32(like: &CubeTensor, len: usize) -> CubeTensor {
+pub(crate) fn zeros_u32(like: &CubeTensor, len: usize) -> CubeTensor {
     check_binding(like, "output", len);
     zeros_client(
         like.client.clone(),
@@ -180,14 +180,24 @@ impl ViewBins {
 /// Projects and depth-orders every view, then reads all their intersection totals back at
 /// once (the render call's one readback besides the cameras). `None` for a view without
 /// Gaussians.
+///
+/// # Panics
+/// When a view has 2^32 or more tile intersections (past what u32 offsets address; possible
+/// only with billions of large Gaussians or very large images, see [`may_wrap`]): the op
+/// has no error channel, and a wrapped total would size its buffers too small.
 pub(super) fn project_and_bin_all(inp: &Inputs, cfg: &RasterConfig) -> Vec<Option<ViewBins>> {
-    let totals = zeros_u32(&inp.means, inp.cams.len());
-    let views: Vec<_> = (0..inp.cams.len())
+    let view_count = inp.cams.len();
+    // One slot per view for its total, then one per view for its wrap flag.
+    let totals = zeros_u32(&inp.means, 2 * view_count);
+    let views: Vec<_> = (0..view_count)
         .map(|v| {
             let (first, rows) = inp.ranges[v];
             (rows > 0).then(|| {
                 let (cam_rec, records, meta) = project(inp, v, cfg);
-                let depth = order_view(&records, &meta, rows, &totals, v);
+                let cam = &inp.cams[v];
+                let wrap_slot =
+                    may_wrap(rows, cam.tiles_x() * cam.tiles_y()).then_some(view_count + v);
+                let depth = order_view(&records, &meta, rows, &totals, v, wrap_slot);
                 (first, rows, cam_rec, records, meta, depth)
             })
         })
@@ -195,10 +205,21 @@ pub(super) fn project_and_bin_all(inp: &Inputs, cfg: &RasterConfig) -> Vec<Optio
     if views.iter().all(Option::is_none) {
         return views.into_iter().map(|_| None).collect();
     }
-    let totals = read_u32s(totals);
+    let all = read_u32s(totals);
+    let (totals, wrapped) = all.split_at(view_count);
+    if let Some(v) = wrapped.iter().position(|&f| f != 0) {
+        let cam = &inp.cams[v];
+        panic!(
+            "splat (CubeCL): view {v} has 2^32 or more tile intersections ({} Gaussians over \
+             {} tiles), more than u32 offsets address; render fewer or smaller Gaussians, or \
+             fewer pixels per view",
+            inp.ranges[v].1,
+            cam.tiles_x() * cam.tiles_y()
+        );
+    }
     views
         .into_iter()
-        .zip(totals)
+        .zip(totals.iter().copied())
         .map(|(view, m)| {
             view.map(|(first, rows, cam_rec, records, meta, depth)| ViewBins {
                 first,

@@ -15,7 +15,7 @@ thread_local! {
 
 /// How many times this thread's renders have read the device back so far. A render call
 /// reads its cameras once (two tiny tensors, while validating) and, per pass, its views'
-/// intersection totals (4 bytes per view, one read); nothing else comes back. Tests count with it; it is per thread
+/// intersection totals and wrap flags (8 bytes per view, one read); nothing else comes back. Tests count with it; it is per thread
 /// so parallel tests do not disturb each other.
 pub fn host_readbacks() -> usize {
     READBACKS.with(|c| c.get())

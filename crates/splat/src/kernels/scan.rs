@@ -96,3 +96,15 @@ pub fn scan_add(output: &mut Tensor<u32>, block_offsets: &Tensor<u32>, len_out: 
         output[i] += block_offsets[i / SCAN_BLOCK as usize];
     }
 }
+
+/// Sets `flags[slot]` to 1 when the exclusive scan `offsets[..len]` wrapped past `u32::MAX`.
+/// Each step adds one u32, so the running sum crosses a multiple of 2^32 at most once per
+/// step, and exactly where it does the output falls below the element before it; no fall,
+/// no wrap. Units that find one all store the same 1, so the race is benign.
+#[cube(launch)]
+pub fn scan_wrapped(offsets: &Tensor<u32>, flags: &mut Tensor<u32>, len: u32, slot: u32) {
+    let i = ABSOLUTE_POS;
+    if i + 1 < len as usize && offsets[i + 1] < offsets[i] {
+        flags[slot as usize] = 1u32;
+    }
+}

@@ -4,7 +4,7 @@
 //! reinterpreted bit for bit: same size, same bits).
 
 use super::radix_sort::{radix_count, radix_scatter, RADIX, RADIX_BITS, SORT_BLOCK, SORT_THREADS};
-use super::scan::{scan_add, scan_blocks, SCAN_BLOCK, SCAN_THREADS};
+use super::scan::{scan_add, scan_blocks, scan_wrapped, SCAN_BLOCK, SCAN_THREADS};
 use burn::backend::TensorMetadata;
 use burn::tensor::{DType, Shape};
 use burn_cubecl::ops::numeric::empty_device_dtype;
@@ -92,6 +92,22 @@ pub fn exclusive_scan(input: &CubeTensor, len_in: usize, len_out: usize) -> Cube
         );
     }
     output
+}
+
+/// Sets `flags[slot]` to 1 when the exclusive scan `offsets[..len]` wrapped past `u32::MAX`
+/// ([`super::scan::scan_wrapped`]); leaves it as it was otherwise. Needs `len >= 2`.
+pub fn flag_wrapped(offsets: &CubeTensor, len: usize, flags: &CubeTensor, slot: usize) {
+    let client = &offsets.client;
+    let dim = CubeDim::new(client, len);
+    scan_wrapped::launch(
+        client,
+        calculate_cube_count_elemwise(client, len, dim),
+        dim,
+        offsets.clone().into_tensor_arg(),
+        flags.clone().into_tensor_arg(),
+        u32_len(len, "scan"),
+        u32_len(slot, "scan flag slot"),
+    );
 }
 
 /// Key bits a sort of keys below `2^bits` visits: whole passes of `RADIX_BITS`, at least one

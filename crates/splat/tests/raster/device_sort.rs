@@ -3,7 +3,7 @@
 //! tiny inputs, 2^20 elements, keys at the bit limit, stability.
 
 use burn::tensor::{DType, Device, Int, Tensor, TensorData};
-use envision4d_splat::primitives::{exclusive_scan, sort_pairs, PrimitiveError};
+use envision4d_splat::primitives::{exclusive_scan, scan_wrapped, sort_pairs, PrimitiveError};
 use envision4d_splat::testkit::{wgpu_test_device, SplitMix64};
 
 fn ints(v: &[u32], device: &Device) -> Tensor<1, Int> {
@@ -98,10 +98,19 @@ fn radix_sort_equals_a_stable_sort() {
     check_sort("high bits ignored", &random(2_000, 4, 1 << 32), 16);
 }
 
-/// Guards the multi-level paths (many blocks, a scanned block table) at the size.
+/// Guards the multi-level paths (many blocks, a scanned block table) at the size, at
+/// the full key width and at the tile sort's few bits (a 350x518 view's 726 tiles: 12 bits),
+/// where the benchmark once timed a million keys in under a millisecond.
 #[test]
 fn radix_sort_of_a_million_keys() {
     check_sort("2^20 random", &random(1 << 20, 5, 1 << 32), 32);
+    for bits in [12u32, 20] {
+        check_sort(
+            &format!("2^20 keys below 2^{bits}"),
+            &random(1 << 20, 6 + u64::from(bits), 1 << bits),
+            bits,
+        );
+    }
 }
 
 fn check_scan(name: &str, values: &[u32]) {
@@ -136,6 +145,46 @@ fn exclusive_scan_equals_a_running_sum() {
     check_scan("all zero", &[0; 3_000]);
     // 2^20 + 5 values: 1 025 blocks, so the block table itself takes two blocks.
     check_scan("2^20 + 5", &random((1 << 20) + 5, 6, 16));
+}
+
+/// Guards the rasterizer's intersection offsets against a silent u32 wrap: a scan whose
+/// running sum reaches 2^32 (anywhere, or exactly at the total) is flagged on every device,
+/// one that stays below is not, including totals of exactly `u32::MAX`; and the CPU's scan of
+/// an i32 tensor whose sums pass `i32::MAX` (it panicked converting them back).
+#[test]
+fn scan_wrap_is_detected_exactly() {
+    let big = 1u32 << 31;
+    let cases: [(&str, Vec<u32>, bool); 8] = [
+        ("empty", vec![], false),
+        ("one max", vec![u32::MAX], false),
+        ("max then zeros", vec![u32::MAX, 0, 0], false),
+        ("max then one", vec![u32::MAX, 1], true),
+        ("exactly 2^32", vec![big, big], true),
+        ("wrap mid-way, then zeros", vec![7, u32::MAX, 0, 0, 3], true),
+        ("random small", random(5_000, 9, 1 << 16), false),
+        // The wrap falls inside the second of three scan blocks.
+        (
+            "wrap past a block edge",
+            {
+                let mut v = vec![1u32 << 20; 3_000];
+                v[1_500] = u32::MAX - 1_000;
+                v
+            },
+            true,
+        ),
+    ];
+    for (name, values, want) in cases {
+        let mut sum = 0u64;
+        let truth = values.iter().any(|&x| {
+            sum += u64::from(x);
+            sum > u64::from(u32::MAX)
+        });
+        assert_eq!(truth, want, "{name}: the case's own expectation");
+        for (dev_name, device) in devices() {
+            let offsets = exclusive_scan(ints(&values, &device)).unwrap();
+            assert_eq!(scan_wrapped(offsets).unwrap(), want, "{name} on {dev_name}");
+        }
+    }
 }
 
 /// Guards bad arguments reaching the kernels.
