@@ -111,8 +111,15 @@ pub fn is_cuda_spec(spec: &str) -> bool {
     spec == "cuda" || spec.starts_with("cuda:")
 }
 
+/// CUDA GPU `index`: the driver must report it, and (on the LLVM route) libdevice must be
+/// where CubeCL will look, before the device starts; then the probe.
 #[cfg(feature = "cuda")]
 fn cuda(index: usize, what: &str) -> Result<Device, InputError> {
+    use envision4d_splat::cuda_machine;
+    let named = |e: cuda_machine::CudaMachineError| InputError(format!("{what}: {e}"));
+    cuda_machine::check_device(index).map_err(named)?;
+    #[cfg(not(feature = "cuda-nvrtc"))]
+    cuda_machine::check_libdevice().map_err(named)?;
     probe(what, CUDA_HINT, || Device::cuda(index))
 }
 
@@ -124,9 +131,12 @@ fn cuda(_index: usize, what: &str) -> Result<Device, InputError> {
     )))
 }
 
-/// Starts a device and round-trips one tiny tensor through it. Backends report a missing
-/// driver by panicking deep inside; the panic is caught here, kept off stderr, and turned
-/// into an error that says what to install.
+/// Starts a device, round-trips one tiny tensor through it and runs one kernel on it
+/// (`exp`: on CUDA's LLVM route a libdevice call, so compiling, linking and loading a
+/// kernel are all exercised). Backends report a missing driver by panicking deep inside;
+/// the panic is caught here, kept off stderr, and turned into an error that says what to
+/// install. A kernel that fails to build, or computes a wrong value, is the same error:
+/// found here, not at the first real read of a run.
 ///
 /// CubeCL's CUDA runtime starts the driver on its own server thread: the panic that names
 /// the cause (cudarc failing to load libcuda) happens there, and the calling thread only sees
@@ -143,16 +153,49 @@ fn probe(what: &str, hint: &str, make: impl FnOnce() -> Device) -> Result<Device
     }));
     let started = catch_unwind(AssertUnwindSafe(|| {
         let device = make();
-        let t = Tensor::<1>::from_floats([1.0, 2.0], &device);
-        let _ = t.into_data();
-        device
+        let t = Tensor::<1>::from_floats(PROBE_INPUT, &device);
+        let _ = t.clone().into_data();
+        let computed = t.exp().try_into_data();
+        (device, computed)
     }));
     std::panic::set_hook(quiet);
-    started.map_err(|payload| {
+    let (device, computed) = started.map_err(|payload| {
         let first = seen.lock().ok().and_then(|seen| seen.first().cloned());
         let cause = first.unwrap_or_else(|| panic_message(payload.as_ref()).to_owned());
         InputError(format!("{what}: {hint} (the backend said: {cause})"))
-    })
+    })?;
+    let kernel_failed = |detail: String| {
+        InputError(format!(
+            "{what}: the device started but its first kernel (exp) {detail}; \
+             this backend cannot run the model here"
+        ))
+    };
+    let values = computed
+        .map_err(|e| kernel_failed(format!("failed: {e}")))?
+        .convert::<f32>()
+        .try_to_vec::<f32>()
+        .map_err(|e| kernel_failed(format!("returned unreadable data: {e:?}")))?;
+    check_probe(&values).map_err(kernel_failed)?;
+    Ok(device)
+}
+
+/// The probe kernel's input; `exp` of it is known to f32 precision.
+const PROBE_INPUT: [f32; 2] = [1.0, 2.0];
+
+/// Whether the probe kernel's output is `exp(PROBE_INPUT)` (relative error below 1e-5: the
+/// fast-math `exp` of a GPU is good to a few ulp).
+fn check_probe(values: &[f32]) -> Result<(), String> {
+    let want: Vec<f32> = PROBE_INPUT.iter().map(|x| x.exp()).collect();
+    let close = values.len() == want.len()
+        && values
+            .iter()
+            .zip(&want)
+            .all(|(got, w)| ((got - w) / w).abs() < 1e-5);
+    if close {
+        Ok(())
+    } else {
+        Err(format!("computed {values:?} where {want:?} was expected"))
+    }
 }
 
 /// The text of a panic's payload (`panic!` with a literal or a formatted message).
@@ -162,4 +205,44 @@ fn panic_message(payload: &(dyn Any + Send)) -> &str {
         .map(String::as_str)
         .or_else(|| payload.downcast_ref::<&str>().copied())
         .unwrap_or("no message")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Guards the probe's kernel check: a device whose `exp` returns its input (a kernel that
+    /// never ran), garbage or too few values is refused; a correct one within a few ulp passes.
+    #[test]
+    fn probe_accepts_exp_only() {
+        let exact: Vec<f32> = PROBE_INPUT.iter().map(|x| x.exp()).collect();
+        assert!(check_probe(&exact).is_ok());
+        let near: Vec<f32> = exact
+            .iter()
+            .map(|v| v * (1.0 + 4.0 * f32::EPSILON))
+            .collect();
+        assert!(check_probe(&near).is_ok());
+        for bad in [
+            vec![1.0, 2.0],
+            vec![0.0, 0.0],
+            vec![f32::NAN, 7.389],
+            vec![2.718],
+        ] {
+            let err = check_probe(&bad).unwrap_err();
+            assert!(err.contains("expected"), "{err}");
+        }
+    }
+
+    /// Guards the wgpu probe on lavapipe: the kernel check must pass where wgpu works, so a
+    /// working GPU is never refused.
+    #[test]
+    fn wgpu_probe_runs_a_kernel() {
+        if envision4d_splat::testkit::wgpu_test_device().is_none() {
+            eprintln!("no wgpu adapter: skipped");
+            return;
+        }
+        BackendChoice::Wgpu
+            .device()
+            .expect("wgpu starts and computes exp");
+    }
 }

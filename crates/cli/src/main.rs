@@ -10,6 +10,7 @@ mod eval_cmd;
 mod image_out;
 mod model_config;
 mod plot;
+mod reduce_choice;
 mod render_cmd;
 mod report;
 mod splat_cmd;

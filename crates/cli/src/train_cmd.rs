@@ -1,11 +1,10 @@
 //! `envision4d train --config FILE [--resume DIR] [--dry-run] [--backend ...]`.
 
-use crate::backend_choice::{is_cuda_spec, parse_device, BackendChoice};
-use crate::InputError;
+use crate::backend_choice::{parse_device, BackendChoice};
+use crate::reduce_choice::{nccl, reduce_for, ReduceChoice};
 use anyhow::Result;
 use clap::Args;
 use envision4d_train::freeze::ParamSplit;
-use envision4d_train::parallel::GradientReduce;
 use envision4d_train::run::{run as run_training, Observer, RunOptions};
 use envision4d_train::step::build_model;
 use envision4d_train::validate::ValReport;
@@ -55,29 +54,6 @@ pub struct TrainArgs {
     grad_reduce: ReduceChoice,
 }
 
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-pub enum ReduceChoice {
-    Auto,
-    Gather,
-    AllReduce,
-}
-
-/// The gradient reduction for the `--devices` entries `specs`.
-fn reduce_for(choice: ReduceChoice, specs: &[String]) -> Result<GradientReduce, InputError> {
-    let all_cuda = !specs.is_empty() && specs.iter().all(|s| is_cuda_spec(s));
-    match choice {
-        ReduceChoice::Gather => Ok(GradientReduce::Gather),
-        ReduceChoice::Auto if all_cuda => Ok(GradientReduce::AllReduce),
-        ReduceChoice::Auto => Ok(GradientReduce::Gather),
-        ReduceChoice::AllReduce if all_cuda => Ok(GradientReduce::AllReduce),
-        ReduceChoice::AllReduce => Err(InputError(format!(
-            "--grad-reduce all-reduce: Burn's collectives run on CUDA devices only, but \
-             --devices is {:?}; use --grad-reduce gather (or auto)",
-            specs.join(",")
-        ))),
-    }
-}
-
 pub fn run(args: TrainArgs) -> Result<()> {
     let mut cfg = envision4d_train::load::load_with_overrides(&args.config, &args.sets)?;
     if let Some(seed) = args.seed {
@@ -86,7 +62,6 @@ pub fn run(args: TrainArgs) -> Result<()> {
     if let Some(dir) = &args.out_dir {
         cfg.run.out_dir = dir.clone();
     }
-    let reduce = reduce_for(args.grad_reduce, &args.devices)?;
     // run.activation_checkpointing: Burn's balanced checkpointing on every training device.
     let autodiff = |d: burn::tensor::Device| {
         let d = d.autodiff();
@@ -101,6 +76,10 @@ pub fn run(args: TrainArgs) -> Result<()> {
         .iter()
         .map(|d| parse_device(d).map(autodiff))
         .collect::<Result<Vec<_>, _>>()?;
+    let (reduce, note) = reduce_for(args.grad_reduce, &args.devices, nccl)?;
+    if let Some(note) = note {
+        eprintln!("{note}");
+    }
     // With --devices the first one holds the model and the optimiser.
     let device = match devices.first() {
         Some(d) => d.clone(),

@@ -15,6 +15,8 @@ pub mod camera;
 pub mod camera_json;
 pub mod config;
 pub mod cpu;
+#[cfg(feature = "cuda")]
+pub mod cuda_machine;
 pub mod kernels;
 pub mod math;
 pub mod ply;
