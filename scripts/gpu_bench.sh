@@ -11,7 +11,10 @@
 #   MODEL_MODES=forward scripts/gpu_bench.sh      # no training step
 #   PRECISIONS=f32 scripts/gpu_bench.sh           # the forward in f32 only (default f32 f16 bf16)
 #   SKIP_MODEL=1 scripts/gpu_bench.sh             # the rasterizer only
+#   BACKENDS=cuda CUDA=1 scripts/gpu_bench.sh     # one backend only
 #
+# Each backend runs whole (rasterizer, then model) before the next, CUDA first, and the
+# table is rewritten after every section: a run stopped by a timeout keeps what it measured.
 # The model part runs on each GPU backend: crates/model/benches/forward.rs for the paper-size
 # forward (VGGT-1B widths, 2 context frames at 350x518, random weights; the aggregator in
 # each of PRECISIONS), and
@@ -22,13 +25,13 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 OUT=${OUT:-runs/gpu-bench}
 SIZES=${SIZES:-362600,1000000,3000000}
-BACKENDS=wgpu
+DEFAULT_BACKENDS=wgpu
 FEATURES=()
 MODEL_FEATURES=()
 STEP_FEATURES=()
 if [ -n "${CUDA:-}" ]; then
   # CUDA first: on a short lease its rows are the ones that matter most.
-  BACKENDS=cuda,wgpu
+  DEFAULT_BACKENDS=cuda,wgpu
   FEATURES=(--features envision4d-splat/cuda)
   MODEL_FEATURES=(--features envision4d-model/cuda)
   STEP_FEATURES=(--features envision4d-train/cuda)
@@ -39,6 +42,7 @@ MODEL_MODES=${MODEL_MODES:-forward train}
 # The aggregator's float formats the forward runs in (`--precision`; a device without one
 # gets a NaN row: wgpu has no bf16).
 PRECISIONS=${PRECISIONS:-f32 f16 bf16}
+BACKENDS=${BACKENDS:-$DEFAULT_BACKENDS}
 mkdir -p "$OUT"
 export XDG_RUNTIME_DIR="${XDG_RUNTIME_DIR:-$(mktemp -d)}"
 # A bench binary: the given path, or built here (its path ends cargo's "Executable" line).
@@ -56,67 +60,75 @@ bench_bin() {
   echo "$bin"
 }
 BIN=$(bench_bin "${RASTER_BIN:-}" raster "${FEATURES[@]}")
-# One process per backend, so a backend that cannot start (no Vulkan driver, no CUDA
-# driver) costs its own rows only; its exit status lands in the table.
-: > "$OUT/raster.md.tmp"
-for b in ${BACKENDS//,/ }; do
-  echo "== raster and sort on $b, sizes $SIZES ($(date -u +%FT%TZ))"
-  echo -e "\n### $b\n" >> "$OUT/raster.md.tmp"
-  "$BIN" --backends "$b" --sizes "$SIZES" --json "$OUT/raster-$b.json" | tee -a "$OUT/raster.md.tmp" \
-    || echo "raster bench on $b failed (exit ${PIPESTATUS[0]}; its messages are in the run's log)" | tee -a "$OUT/raster.md.tmp"
-done
-: > "$OUT/model.md.tmp"
+FWD=""
+STEP=""
 if [ -z "${SKIP_MODEL:-}" ]; then
   FWD=$(bench_bin "${FORWARD_BIN:-}" forward "${MODEL_FEATURES[@]}")
-  STEP=""
   case " $MODEL_MODES " in *" train "*) STEP=$(bench_bin "${STEP_BIN:-}" train_step "${STEP_FEATURES[@]}") ;; esac
+fi
+: > "$OUT/raster.md.tmp"
+: > "$OUT/model.md.tmp"
+if [ -z "${SKIP_MODEL:-}" ]; then
   {
     echo
     echo "| backend | model | mode | seconds | host peak RSS GiB | device reserved GiB |"
     echo "|---|---|---|---|---|---|"
   } >> "$OUT/model.md.tmp"
-  # One table row from a bench's `*_s=... peak_rss_gib=... device_reserved_gib=...` line
-  # (NaN where the device lacks a precision; "failed" where the bench printed none).
-  row() {
-    local secs rss dev
-    secs=$(echo "$3" | sed -n 's/.*_s=\([0-9.NaN]*\).*/\1/p')
-    rss=$(echo "$3" | sed -n 's/.*peak_rss_gib=\([0-9.NaN]*\).*/\1/p')
-    dev=$(echo "$3" | sed -n 's/.*device_reserved_gib=\([0-9.a-zA-Z]*\).*/\1/p')
-    echo "| $1 | $MODEL_PRESET, $MODEL_IMAGE | $2 | ${secs:-failed} | $rss | $dev |" >> "$OUT/model.md.tmp"
-  }
-  for b in ${BACKENDS//,/ }; do
-    for mode in $MODEL_MODES; do
-      echo "== model $MODEL_PRESET at $MODEL_IMAGE, $mode, $b"
-      if [ "$mode" = train ]; then
-        line=$("$STEP" --config configs/waymo.toml --preset "$MODEL_PRESET" --image "$MODEL_IMAGE" \
-          --batch 1 --device "$b" --repeats 1 | tee -a /dev/stderr | grep -E '^train_step_s=' | tail -1) \
-          || line=""
-        row "$b" "$mode" "$line"
-      else
-        for p in $PRECISIONS; do
-          echo "== model $MODEL_PRESET at $MODEL_IMAGE, forward, aggregator in $p, $b"
-          line=$("$FWD" --preset "$MODEL_PRESET" --image "$MODEL_IMAGE" --device "$b" \
-            --mode "$mode" --precision "$p" --repeats 1 | tee -a /dev/stderr |
-            grep -E '^forward_warm_s=' | tail -1) || line=""
-          row "$b" "$mode ($p)" "$line"
-        done
-      fi
-    done
-  done
 fi
-# Which GPU: the adapter names the drivers report, where the tools exist.
-{
-  echo "# GPU benchmark, $(date -u +%F)"
-  echo
-  if command -v nvidia-smi >/dev/null 2>&1; then
-    echo "GPU: $(nvidia-smi --query-gpu=name,memory.total,driver_version --format=csv,noheader | head -1)"
-  fi
-  if command -v vulkaninfo >/dev/null 2>&1; then
-    echo "Vulkan: $(vulkaninfo --summary 2>/dev/null | sed -n 's/.*deviceName *= *//p' | head -1)"
-  fi
-  echo "Command: scripts/gpu_bench.sh (SIZES=$SIZES, backends $BACKENDS; model $MODEL_PRESET at $MODEL_IMAGE, modes: ${SKIP_MODEL:+none}${SKIP_MODEL:-$MODEL_MODES})"
-  echo
-  cat "$OUT/raster.md.tmp" "$OUT/model.md.tmp"
-} > "$OUT/gpu-bench.md"
+# The table as measured so far (which GPU: the adapter names the drivers report).
+write_table() {
+  {
+    echo "# GPU benchmark, $(date -u +%F)"
+    echo
+    if command -v nvidia-smi >/dev/null 2>&1; then
+      echo "GPU: $(nvidia-smi --query-gpu=name,memory.total,driver_version --format=csv,noheader | head -1)"
+    fi
+    if command -v vulkaninfo >/dev/null 2>&1; then
+      echo "Vulkan: $(vulkaninfo --summary 2>/dev/null | sed -n 's/.*deviceName *= *//p' | head -1)"
+    fi
+    echo "Command: scripts/gpu_bench.sh (SIZES=$SIZES, backends $BACKENDS; model $MODEL_PRESET at $MODEL_IMAGE, modes: ${SKIP_MODEL:+none}${SKIP_MODEL:-$MODEL_MODES})"
+    echo
+    cat "$OUT/raster.md.tmp" "$OUT/model.md.tmp"
+  } > "$OUT/gpu-bench.md.part"
+  mv "$OUT/gpu-bench.md.part" "$OUT/gpu-bench.md"
+}
+# One table row from a bench's `*_s=... peak_rss_gib=... device_reserved_gib=...` line
+# (NaN where the device lacks a precision; "failed" where the bench printed none).
+row() {
+  local secs rss dev
+  secs=$(echo "$3" | sed -n 's/.*_s=\([0-9.NaN]*\).*/\1/p')
+  rss=$(echo "$3" | sed -n 's/.*peak_rss_gib=\([0-9.NaN]*\).*/\1/p')
+  dev=$(echo "$3" | sed -n 's/.*device_reserved_gib=\([0-9.a-zA-Z]*\).*/\1/p')
+  echo "| $1 | $MODEL_PRESET, $MODEL_IMAGE | $2 | ${secs:-failed} | $rss | $dev |" >> "$OUT/model.md.tmp"
+  write_table
+}
+# One process per bench and backend, so a backend that cannot start (no Vulkan driver, no
+# CUDA driver) costs its own rows only; its exit status lands in the table.
+for b in ${BACKENDS//,/ }; do
+  echo "== raster and sort on $b, sizes $SIZES ($(date -u +%FT%TZ))"
+  echo -e "\n### $b\n" >> "$OUT/raster.md.tmp"
+  "$BIN" --backends "$b" --sizes "$SIZES" --json "$OUT/raster-$b.json" | tee -a "$OUT/raster.md.tmp" \
+    || echo "raster bench on $b failed (exit ${PIPESTATUS[0]}; its messages are in the run's log)" | tee -a "$OUT/raster.md.tmp"
+  write_table
+  [ -z "${SKIP_MODEL:-}" ] || continue
+  for mode in $MODEL_MODES; do
+    echo "== model $MODEL_PRESET at $MODEL_IMAGE, $mode, $b"
+    if [ "$mode" = train ]; then
+      line=$("$STEP" --config configs/waymo.toml --preset "$MODEL_PRESET" --image "$MODEL_IMAGE" \
+        --batch 1 --device "$b" --repeats 1 | tee -a /dev/stderr | grep -E '^train_step_s=' | tail -1) \
+        || line=""
+      row "$b" "$mode" "$line"
+    else
+      for p in $PRECISIONS; do
+        echo "== model $MODEL_PRESET at $MODEL_IMAGE, forward, aggregator in $p, $b"
+        line=$("$FWD" --preset "$MODEL_PRESET" --image "$MODEL_IMAGE" --device "$b" \
+          --mode "$mode" --precision "$p" --repeats 1 | tee -a /dev/stderr |
+          grep -E '^forward_warm_s=' | tail -1) || line=""
+        row "$b" "$mode ($p)" "$line"
+      done
+    fi
+  done
+done
+write_table
 rm "$OUT/raster.md.tmp" "$OUT/model.md.tmp"
 echo "wrote $OUT/gpu-bench.md and $OUT/raster-{${BACKENDS}}.json"

@@ -51,7 +51,9 @@ if [ ! -f "${CUDA_PATH:-/usr/local/cuda}/nvvm/libdevice/libdevice.10.bc" ]; then
   export CUDA_PATH="$bins/cuda"
   say "CUDA_PATH=$CUDA_PATH (the packed libdevice)"
 fi
-if ! ldconfig -p | grep -q libvulkan && [ -d .gl ]; then
+# (grep reads a process substitution: under pipefail, `ldconfig -p | grep -q` can fail with
+# SIGPIPE when grep stops reading early, and would unpack the loaders needlessly.)
+if ! grep -q libvulkan < <(ldconfig -p) && [ -d .gl ]; then
   for f in .gl/*.deb; do dpkg -x "$f" /; done
   ldconfig
   say "Vulkan loaders unpacked from .gl"
@@ -73,6 +75,10 @@ if [ -x "$bins/envision4d" ]; then
     timeout "$DEMO_S" "$bins/envision4d" demo --backend "$backend" --seed 7 \
       --out "$bins/demo-$backend" >> "$log" 2>&1
     say "demo --backend $backend: exit $?, $(($(date +%s) - start)) s"
+    # Its quality and timing tables come back (flat); the images stay behind.
+    for f in metrics.json metrics.md; do
+      [ -f "$bins/demo-$backend/$f" ] && cp "$bins/demo-$backend/$f" "$OUT/demo-$backend-$f"
+    done
   done
 fi
 
