@@ -155,6 +155,9 @@ pub fn rasterize_backward<A: GradAdd>(
             }
         }
         base += BATCH;
+        // As in the forward kernel. CUDA lowers the uniform load to a barrier then the load,
+        // with no barrier after (WGSL has one on both sides): safe because nothing writes
+        // `finished`, the batch or `furthest` before the next `sync_cube`; keep it so.
         if workgroup_uniform_load_atomic(&finished[0]) == BATCH {
             break;
         }

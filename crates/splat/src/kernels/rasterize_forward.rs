@@ -230,6 +230,8 @@ pub fn rasterize_forward(
         base += BATCH;
         // The uniform load meets the whole cube first, so nobody still reads the batch the
         // next iteration overwrites; and it tells every unit at once whether all are done.
+        // CUDA lowers it to a barrier then the load, with no barrier after: nothing may
+        // write `finished` or the batch between here and the next `sync_cube`.
         if workgroup_uniform_load_atomic(&finished[0]) == BATCH {
             break;
         }

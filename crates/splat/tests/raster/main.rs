@@ -9,3 +9,4 @@ mod gradients;
 mod oracle;
 mod stacked;
 mod wgpu_parity;
+mod wgpu_pipeline;
