@@ -62,9 +62,12 @@ bench_bin() {
 BIN=$(bench_bin "${RASTER_BIN:-}" raster "${FEATURES[@]}")
 FWD=""
 STEP=""
+# A model bench that does not build costs its own rows ("failed"), not the rasterizer's.
 if [ -z "${SKIP_MODEL:-}" ]; then
-  FWD=$(bench_bin "${FORWARD_BIN:-}" forward "${MODEL_FEATURES[@]}")
-  case " $MODEL_MODES " in *" train "*) STEP=$(bench_bin "${STEP_BIN:-}" train_step "${STEP_FEATURES[@]}") ;; esac
+  FWD=$(bench_bin "${FORWARD_BIN:-}" forward "${MODEL_FEATURES[@]}") || FWD=false
+  case " $MODEL_MODES " in
+    *" train "*) STEP=$(bench_bin "${STEP_BIN:-}" train_step "${STEP_FEATURES[@]}") || STEP=false ;;
+  esac
 fi
 : > "$OUT/raster.md.tmp"
 : > "$OUT/model.md.tmp"
@@ -75,21 +78,22 @@ if [ -z "${SKIP_MODEL:-}" ]; then
     echo "|---|---|---|---|---|---|"
   } >> "$OUT/model.md.tmp"
 fi
-# The table as measured so far (which GPU: the adapter names the drivers report).
+# The table's header, once: which GPU (the adapter names the drivers report) and how.
+{
+  echo "# GPU benchmark, $(date -u +%F)"
+  echo
+  if command -v nvidia-smi >/dev/null 2>&1; then
+    echo "GPU: $(nvidia-smi --query-gpu=name,memory.total,driver_version --format=csv,noheader | head -1)"
+  fi
+  if command -v vulkaninfo >/dev/null 2>&1; then
+    echo "Vulkan: $(vulkaninfo --summary 2>/dev/null | sed -n 's/.*deviceName *= *//p' | head -1)"
+  fi
+  echo "Command: scripts/gpu_bench.sh (SIZES=$SIZES, backends $BACKENDS; model $MODEL_PRESET at $MODEL_IMAGE, modes: ${SKIP_MODEL:+none}${SKIP_MODEL:-$MODEL_MODES})"
+  echo
+} > "$OUT/header.md.tmp"
+# The table as measured so far.
 write_table() {
-  {
-    echo "# GPU benchmark, $(date -u +%F)"
-    echo
-    if command -v nvidia-smi >/dev/null 2>&1; then
-      echo "GPU: $(nvidia-smi --query-gpu=name,memory.total,driver_version --format=csv,noheader | head -1)"
-    fi
-    if command -v vulkaninfo >/dev/null 2>&1; then
-      echo "Vulkan: $(vulkaninfo --summary 2>/dev/null | sed -n 's/.*deviceName *= *//p' | head -1)"
-    fi
-    echo "Command: scripts/gpu_bench.sh (SIZES=$SIZES, backends $BACKENDS; model $MODEL_PRESET at $MODEL_IMAGE, modes: ${SKIP_MODEL:+none}${SKIP_MODEL:-$MODEL_MODES})"
-    echo
-    cat "$OUT/raster.md.tmp" "$OUT/model.md.tmp"
-  } > "$OUT/gpu-bench.md.part"
+  cat "$OUT/header.md.tmp" "$OUT/raster.md.tmp" "$OUT/model.md.tmp" > "$OUT/gpu-bench.md.part"
   mv "$OUT/gpu-bench.md.part" "$OUT/gpu-bench.md"
 }
 # One table row from a bench's `*_s=... peak_rss_gib=... device_reserved_gib=...` line
@@ -130,5 +134,5 @@ for b in ${BACKENDS//,/ }; do
   done
 done
 write_table
-rm "$OUT/raster.md.tmp" "$OUT/model.md.tmp"
+rm "$OUT/header.md.tmp" "$OUT/raster.md.tmp" "$OUT/model.md.tmp"
 echo "wrote $OUT/gpu-bench.md and $OUT/raster-{${BACKENDS}}.json"

@@ -71,7 +71,7 @@ const CUDA_HINT: &str = "CUDA could not start; it needs an NVIDIA GPU, its drive
                          build) on the library path";
 
 impl BackendChoice {
-    /// The device, started and checked with one tiny tensor.
+    /// The device, started and checked with one tiny tensor and one kernel.
     pub fn device(self) -> Result<Device, InputError> {
         match self {
             BackendChoice::Cpu => Ok(Device::flex()),
@@ -164,9 +164,16 @@ fn probe(what: &str, hint: &str, make: impl FnOnce() -> Device) -> Result<Device
         let cause = first.unwrap_or_else(|| panic_message(payload.as_ref()).to_owned());
         InputError(format!("{what}: {hint} (the backend said: {cause})"))
     })?;
+    // On CUDA the compile or link error is a panic on CubeCL's server thread, which the hook
+    // recorded; the read only says that it failed.
+    let cause = seen.lock().ok().and_then(|seen| seen.first().cloned());
     let kernel_failed = |detail: String| {
+        let cause = cause
+            .as_deref()
+            .map(|c| format!(" (the backend said: {c})"))
+            .unwrap_or_default();
         InputError(format!(
-            "{what}: the device started but its first kernel (exp) {detail}; \
+            "{what}: the device started but its first kernel (exp) {detail}{cause}; \
              this backend cannot run the model here"
         ))
     };
@@ -226,7 +233,7 @@ mod tests {
             vec![1.0, 2.0],
             vec![0.0, 0.0],
             vec![f32::NAN, 7.389],
-            vec![2.718],
+            vec![1.0],
         ] {
             let err = check_probe(&bad).unwrap_err();
             assert!(err.contains("expected"), "{err}");
@@ -238,7 +245,7 @@ mod tests {
     #[test]
     fn wgpu_probe_runs_a_kernel() {
         if envision4d_splat::testkit::wgpu_test_device().is_none() {
-            eprintln!("no wgpu adapter: skipped");
+            eprintln!("ENVISION4D_SKIP_WGPU=1: skipped");
             return;
         }
         BackendChoice::Wgpu

@@ -1,5 +1,5 @@
 //! `--grad-reduce`: how `--devices` combine their gradients, decided once the devices have
-//! started (docs/TRAINING.md, "Several devices").
+//! started (docs/TRAINING.md, "Several GPUs: `--devices`").
 
 use crate::backend_choice::is_cuda_spec;
 use crate::InputError;
@@ -41,46 +41,52 @@ pub fn reduce_for(
     specs: &[String],
     transport: impl Fn(usize) -> bool,
 ) -> Result<(GradientReduce, Option<String>), InputError> {
+    if choice == ReduceChoice::Gather {
+        return Ok((GradientReduce::Gather, None));
+    }
     let all_cuda = !specs.is_empty() && specs.iter().all(|s| is_cuda_spec(s));
-    let refusal = if !all_cuda {
-        Some(format!(
-            "Burn's collectives run on CUDA devices only, but --devices is {:?}",
-            specs.join(",")
-        ))
-    } else if let Some(i) = repeated_gpu(specs) {
-        Some(format!(
-            "--devices lists cuda:{i} twice, and NCCL needs one rank per GPU (a GPU twice \
-             would wait on itself forever)"
-        ))
-    } else if let Some(i) = specs
-        .iter()
-        .filter_map(|s| cuda_index(s))
-        .find(|&i| !transport(i))
-    {
-        Some(format!(
-            "cuda:{i} has no NCCL: CubeCL looks for libnccl.so (or libnccl.so.12, .11, ...) \
-             on the library path, and NCCL's runtime alone installs libnccl.so.2; link \
-             libnccl.so to it or put a folder with that link on LD_LIBRARY_PATH"
-        ))
-    } else {
-        None
-    };
+    let refusal = why_not_all_reduce(specs, all_cuda, transport);
     match (choice, refusal) {
-        (ReduceChoice::Gather, _) => Ok((GradientReduce::Gather, None)),
-        (ReduceChoice::Auto | ReduceChoice::AllReduce, None) => {
-            Ok((GradientReduce::AllReduce, None))
-        }
-        (ReduceChoice::Auto, Some(why)) if all_cuda => Ok((
-            GradientReduce::Gather,
-            Some(format!(
-                "--grad-reduce auto: gathering on the first GPU, since {why}"
-            )),
-        )),
-        (ReduceChoice::Auto, Some(_)) => Ok((GradientReduce::Gather, None)),
+        (_, None) => Ok((GradientReduce::AllReduce, None)),
         (ReduceChoice::AllReduce, Some(why)) => Err(InputError(format!(
             "--grad-reduce all-reduce: {why}; use --grad-reduce gather (or auto)"
         ))),
+        // `auto`: other backends gather as a matter of course; CUDA GPUs say why.
+        (_, Some(why)) => Ok((
+            GradientReduce::Gather,
+            all_cuda
+                .then(|| format!("--grad-reduce auto: gathering on the first GPU, since {why}")),
+        )),
     }
+}
+
+/// Why `specs` cannot all-reduce, or `None` when they can: every entry a CUDA GPU, none
+/// twice, each with NCCL.
+fn why_not_all_reduce(
+    specs: &[String],
+    all_cuda: bool,
+    transport: impl Fn(usize) -> bool,
+) -> Option<String> {
+    if !all_cuda {
+        return Some(format!(
+            "Burn's collectives run on CUDA devices only, but --devices is {:?}",
+            specs.join(",")
+        ));
+    }
+    if let Some(i) = repeated_gpu(specs) {
+        return Some(format!(
+            "--devices lists cuda:{i} twice, and NCCL needs one rank per GPU (a GPU twice \
+             would wait on itself forever)"
+        ));
+    }
+    let gpus = specs.iter().filter_map(|s| cuda_index(s));
+    gpus.into_iter().find(|&i| !transport(i)).map(|i| {
+        format!(
+            "cuda:{i} has no NCCL: CubeCL looks for libnccl.so (or libnccl.so.12, .11, ...) \
+             on the library path, and NCCL's runtime alone installs libnccl.so.2; link \
+             libnccl.so to it or put a folder with that link on LD_LIBRARY_PATH"
+        )
+    })
 }
 
 /// Whether CUDA GPU `index` has NCCL (it has been started by then).

@@ -47,9 +47,9 @@ pub struct TrainArgs {
     /// `wgpu` (the default GPU), `cuda:0,cuda:1` (NVIDIA GPUs, `--features cuda`), `cpu`. The batch is split evenly; see docs/TRAINING.md.
     #[arg(long, value_delimiter = ',')]
     devices: Vec<String>,
-    /// How `--devices` combine their gradients: `all-reduce` (Burn's collectives, NCCL; CUDA
-    /// devices only), `gather` (summed on the first device; any backend), or `auto`
-    /// (all-reduce when every device is CUDA).
+    /// How `--devices` combine their gradients: `all-reduce` (Burn's collectives, NCCL;
+    /// distinct CUDA GPUs only), `gather` (summed on the first device; any backend), or `auto`
+    /// (all-reduce when every device is a distinct CUDA GPU with NCCL, else gather).
     #[arg(long, value_enum, default_value_t = ReduceChoice::Auto)]
     grad_reduce: ReduceChoice,
 }

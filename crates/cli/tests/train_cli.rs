@@ -83,7 +83,7 @@ fn bad_input_is_exit_2_naming_the_problem() {
     assert_eq!(o.status.code(), Some(2), "{}", text(&o));
     assert!(text(&o).contains("tpu"), "{}", text(&o));
     // Burn's collectives exist on CUDA only: asking for them on CPU devices is refused
-    // before anything starts (cubecl would panic mid-step).
+    // before training starts (cubecl would panic mid-step).
     let o = bin(
         &[
             "train",

@@ -6,7 +6,7 @@
 //!
 //! Built with the `cuda` feature only; the callers gate on it too.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// Where CubeCL's LLVM route looks for the CUDA toolkit when `CUDA_PATH` is unset (its
 /// `nvptx::libdevice` lookup, in its order).
@@ -42,25 +42,40 @@ pub fn check_device(index: usize) -> Result<(), CudaMachineError> {
     }
 }
 
-/// The libdevice file CubeCL's LLVM route will link: under `CUDA_PATH` when it is set (and
-/// only there, as CubeCL does), else under the first standard root that has one.
+/// The libdevice file CubeCL's LLVM route will link, found as CubeCL finds it: the root is
+/// `CUDA_PATH` when set, else the first standard root with an `nvvm/libdevice` folder, and
+/// the file must be in that root (a later root's copy is never read).
 pub fn check_libdevice() -> Result<PathBuf, CudaMachineError> {
-    let under = |root: PathBuf| LIBDEVICE.iter().fold(root, |p, part| p.join(part));
-    let candidates: Vec<PathBuf> = match std::env::var_os("CUDA_PATH") {
-        Some(root) => vec![under(PathBuf::from(root))],
-        None => CUDA_ROOTS.iter().map(|r| under(PathBuf::from(r))).collect(),
+    let folder = |root: &Path| root.join(LIBDEVICE[0]).join(LIBDEVICE[1]);
+    let root = match std::env::var_os("CUDA_PATH") {
+        Some(root) => Some(PathBuf::from(root)),
+        None => CUDA_ROOTS
+            .iter()
+            .map(PathBuf::from)
+            .find(|r| folder(r).is_dir()),
     };
-    candidates
-        .iter()
-        .find(|p| p.is_file())
-        .cloned()
-        .ok_or_else(|| CudaMachineError::NoLibdevice {
-            looked: candidates
-                .iter()
-                .map(|p| p.display().to_string())
-                .collect::<Vec<_>>()
-                .join(", "),
+    let looked = match &root {
+        Some(root) => folder(root).join(LIBDEVICE[2]),
+        None => {
+            return Err(CudaMachineError::NoLibdevice {
+                looked: format!(
+                    "CUDA_PATH (unset) and {}",
+                    CUDA_ROOTS
+                        .iter()
+                        .map(|r| folder(Path::new(r)).display().to_string())
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                ),
+            })
+        }
+    };
+    if looked.is_file() {
+        Ok(looked)
+    } else {
+        Err(CudaMachineError::NoLibdevice {
+            looked: looked.display().to_string(),
         })
+    }
 }
 
 /// Whether CUDA device `index`'s runtime moves data between GPUs itself: true when it

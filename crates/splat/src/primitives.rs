@@ -55,8 +55,8 @@ pub fn sort_pairs(
 
 /// Whether an exclusive scan's output wrapped past `u32::MAX` (its true total, or a running
 /// sum before it, reached 2^32): some element is below the one before it. One small readback
-/// on CubeCL backends; the rasterizer runs the same check, without the readback, where a
-/// view's intersections could reach 2^32.
+/// on CubeCL backends; the rasterizer runs the same kernel on every view's intersection
+/// offsets, its flag riding on the one read of the views' totals.
 pub fn scan_wrapped(offsets: Tensor<1, Int>) -> Result<bool, PrimitiveError> {
     check_dtype("scan_wrapped", &offsets)?;
     Ok(<Dispatch as SplatOps>::splat_scan_wrapped(
@@ -65,7 +65,8 @@ pub fn scan_wrapped(offsets: Tensor<1, Int>) -> Result<bool, PrimitiveError> {
 }
 
 /// Exclusive prefix sum with the total appended: `[a, b, c]` → `[0, a, a+b, a+b+c]`, summed
-/// as u32 (wrapping). A device scan on CubeCL backends.
+/// as u32 (wrapping; [`scan_wrapped`] tells). An i32 result holds the sums' 32-bit patterns,
+/// so a sum past `i32::MAX` reads negative. A device scan on CubeCL backends.
 pub fn exclusive_scan(values: Tensor<1, Int>) -> Result<Tensor<1, Int>, PrimitiveError> {
     check_dtype("exclusive_scan", &values)?;
     Ok(Tensor::from_dispatch(

@@ -35,25 +35,19 @@ pub struct DepthOrder {
     offsets: CubeTensor,
 }
 
-/// Whether `n` Gaussians over `num_tiles` tiles could have 2^32 or more intersections, which
-/// the u32 scan of their counts would wrap (each touches at most every tile once): only
-/// then does [`order_view`] check the scan. At 350x518 (726 tiles) never below 5.9 M
-/// Gaussians.
-pub fn may_wrap(n: usize, num_tiles: u32) -> bool {
-    (n as u64).saturating_mul(u64::from(num_tiles)) > u64::from(u32::MAX)
-}
-
 /// Depth keys, the stable depth sort, tile counts and their scan for one view's `n > 0`
 /// projected Gaussians; the view's intersection count goes to `totals[view]` on the device.
-/// With `wrap_slot`, `totals[wrap_slot]` becomes 1 if the count scan wrapped (see
-/// [`may_wrap`]), so the same readback that sizes the intersections also refuses them.
+/// `totals[wrap_slot]` becomes 1 if the count scan wrapped past `u32::MAX` (2^32 or more
+/// intersections), so the same readback that sizes the intersections also refuses them. One
+/// launch of n units, next to the sort's eight passes of three; run for every view, so every
+/// render test runs it too.
 pub fn order_view(
     records: &CubeTensor,
     meta: &CubeTensor,
     n: usize,
     totals: &CubeTensor,
     view: usize,
-    wrap_slot: Option<usize>,
+    wrap_slot: usize,
 ) -> DepthOrder {
     let client = &records.client;
     let n_u = n as u32;
@@ -83,9 +77,7 @@ pub fn order_view(
         n_u,
     );
     let offsets = exclusive_scan(&counts, n, n + 1);
-    if let Some(slot) = wrap_slot {
-        flag_wrapped(&offsets, n + 1, totals, slot);
-    }
+    flag_wrapped(&offsets, n + 1, totals, wrap_slot);
     copy_total::launch(
         client,
         CubeCount::new_single(),

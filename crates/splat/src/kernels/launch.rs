@@ -6,7 +6,7 @@
 //! intersection): CubeCL does not support zero-size dispatches, and the zero-filled outputs
 //! are already the right answer.
 
-use super::binning::{bins_of_view, may_wrap, order_view, DepthOrder, DeviceBins};
+use super::binning::{bins_of_view, order_view, DepthOrder, DeviceBins};
 use super::math::CAM_LANES;
 use super::project_forward::{project_forward, META_LANES, RECORD_LANES};
 use super::rasterize_forward::{rasterize_forward, OUT_CHANNELS, TILE};
@@ -183,8 +183,8 @@ impl ViewBins {
 ///
 /// # Panics
 /// When a view has 2^32 or more tile intersections (past what u32 offsets address; possible
-/// only with billions of large Gaussians or very large images, see [`may_wrap`]): the op
-/// has no error channel, and a wrapped total would size its buffers too small.
+/// only with millions of Gaussians each covering most tiles): the op has no error channel,
+/// and a wrapped total would size its buffers too small.
 pub(super) fn project_and_bin_all(inp: &Inputs, cfg: &RasterConfig) -> Vec<Option<ViewBins>> {
     let view_count = inp.cams.len();
     // One slot per view for its total, then one per view for its wrap flag.
@@ -194,10 +194,7 @@ pub(super) fn project_and_bin_all(inp: &Inputs, cfg: &RasterConfig) -> Vec<Optio
             let (first, rows) = inp.ranges[v];
             (rows > 0).then(|| {
                 let (cam_rec, records, meta) = project(inp, v, cfg);
-                let cam = &inp.cams[v];
-                let wrap_slot =
-                    may_wrap(rows, cam.tiles_x() * cam.tiles_y()).then_some(view_count + v);
-                let depth = order_view(&records, &meta, rows, &totals, v, wrap_slot);
+                let depth = order_view(&records, &meta, rows, &totals, v, view_count + v);
                 (first, rows, cam_rec, records, meta, depth)
             })
         })

@@ -155,9 +155,9 @@ pub fn rasterize_backward<A: GradAdd>(
             }
         }
         base += BATCH;
-        // As in the forward kernel. CUDA lowers the uniform load to a barrier then the load,
-        // with no barrier after (WGSL has one on both sides): safe because nothing writes
-        // `finished`, the batch or `furthest` before the next `sync_cube`; keep it so.
+        // As in the forward kernel: on CUDA the uniform load is a barrier then the load, so
+        // a write to `finished` must wait for the next `sync_cube` (the batch and `furthest`
+        // may be written at once: their readers met the barrier before the load).
         if workgroup_uniform_load_atomic(&finished[0]) == BATCH {
             break;
         }

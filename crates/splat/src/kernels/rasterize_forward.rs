@@ -230,8 +230,10 @@ pub fn rasterize_forward(
         base += BATCH;
         // The uniform load meets the whole cube first, so nobody still reads the batch the
         // next iteration overwrites; and it tells every unit at once whether all are done.
-        // CUDA lowers it to a barrier then the load, with no barrier after: nothing may
-        // write `finished` or the batch between here and the next `sync_cube`.
+        // CUDA lowers it to a barrier then the load, with no barrier after (WGSL has both):
+        // rewriting the batch right after is safe (its readers met that barrier), but a
+        // write to `finished` must wait for the next `sync_cube`, after every unit loaded it
+        // (the `fetch_add`s above sit after the sync that follows `load_batch`).
         if workgroup_uniform_load_atomic(&finished[0]) == BATCH {
             break;
         }

@@ -98,7 +98,7 @@ fn radix_sort_equals_a_stable_sort() {
     check_sort("high bits ignored", &random(2_000, 4, 1 << 32), 16);
 }
 
-/// Guards the multi-level paths (many blocks, a scanned block table) at the size, at
+/// Guards the multi-level paths (many blocks, a scanned block table) at 2^20 keys, at
 /// the full key width and at the tile sort's few bits (a 350x518 view's 726 tiles: 12 bits),
 /// where the benchmark once timed a million keys in under a millisecond.
 #[test]
