@@ -19,6 +19,8 @@
 # the driver will not load, leaves the lease to the next and its log still comes back.
 set -uo pipefail
 cd "$(dirname "$0")/.."
+# The binary's library messages (Burn, CubeCL, wgpu) go to the log too.
+export RUST_LOG=${RUST_LOG:-warn}
 OUT=${OUT:-runs/device}
 DEMO_S=${DEMO_S:-120}
 BENCH_S=${BENCH_S:-420}

@@ -65,6 +65,9 @@ fn default_burn_device() {
 }
 
 fn main() -> ExitCode {
+    // Off unless RUST_LOG asks (`RUST_LOG=warn`, `RUST_LOG=cubecl=debug`): the libraries'
+    // own messages, for diagnosing a device; the program's output stays as it is otherwise.
+    env_logger::Builder::from_env(env_logger::Env::default().default_filter_or("off")).init();
     envision4d_model::alloc::keep_freed_memory();
     default_burn_device();
     let cli = Cli::parse();
