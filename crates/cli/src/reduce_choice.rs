@@ -79,8 +79,11 @@ fn why_not_all_reduce(
              would wait on itself forever)"
         ));
     }
-    let gpus = specs.iter().filter_map(|s| cuda_index(s));
-    gpus.into_iter().find(|&i| !transport(i)).map(|i| {
+    let without = specs
+        .iter()
+        .filter_map(|s| cuda_index(s))
+        .find(|&i| !transport(i));
+    without.map(|i| {
         format!(
             "cuda:{i} has no NCCL: CubeCL looks for libnccl.so (or libnccl.so.12, .11, ...) \
              on the library path, and NCCL's runtime alone installs libnccl.so.2; link \
