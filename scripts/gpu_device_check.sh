@@ -12,6 +12,8 @@
 # What runs follows what was carried:
 # 1. the binary (cuda-cli): the demo end to end on each of DEMO_BACKENDS (cuda, then wgpu
 #    where a Vulkan driver is present), which reports its own quality and timings;
+#    then the example scene rendered on cuda and on the CPU and compared (SKIP_SPLAT=1 skips
+#    it; SANITIZE=1 adds compute-sanitizer's four tools on the cuda render);
 # 2. the benches (cuda-benches): CUDA=1 scripts/gpu_bench.sh (wgpu and cuda rows).
 # Vulkan loaders: where `ldconfig -p` lists no libvulkan and a .gl folder of loader .debs was
 # carried, they are unpacked first (the device tool's notes say how to fetch them).
@@ -82,6 +84,42 @@ if [ -x "$bins/envision4d" ]; then
       [ -f "$bins/demo-$backend/$f" ] && cp "$bins/demo-$backend/$f" "$OUT/demo-$backend-$f"
     done
   done
+fi
+
+# The rasterizer on the GPU against the CPU path, on the example scene (518x350): the
+# renders' 8-bit difference goes to the log. With SANITIZE=1 the CUDA render then runs under
+# each of compute-sanitizer's tools (out-of-bounds and uninitialised reads, shared-memory
+# races, barrier misuse), where the machine has it; each takes SANITIZE_S at most.
+if [ -x "$bins/envision4d" ] && [ -z "${SKIP_SPLAT:-}" ]; then
+  for backend in cpu cuda; do
+    timeout "$DEMO_S" "$bins/envision4d" splat --ply examples/scene.ply \
+      --camera examples/camera.json --out "$bins/splat-$backend.png" --backend "$backend" \
+      >> "$log" 2>&1
+    say "splat --backend $backend: exit $?"
+  done
+  python3 - "$bins/splat-cpu.png" "$bins/splat-cuda.png" >> "$log" 2>&1 <<'PY'
+import os, sys
+if not all(os.path.exists(p) for p in sys.argv[1:]):
+    sys.exit("splat parity: a render is missing, not compared")
+try:
+    from PIL import Image
+except ImportError:
+    sys.exit("splat parity: no PIL on this machine, not compared")
+a, b = (Image.open(p).convert("RGB") for p in sys.argv[1:])
+if a.size != b.size:
+    sys.exit(f"splat parity: sizes differ, {a.size} vs {b.size}")
+d = [abs(x - y) for x, y in zip(a.tobytes(), b.tobytes())]
+print(f"== splat parity, cuda vs cpu, {a.size[0]}x{a.size[1]}: max {max(d)}/255, "
+      f"mean {sum(d) / len(d):.4f}/255, {sum(x > 1 for x in d)} of {len(d)} values off by more than 1")
+PY
+  if [ -n "${SANITIZE:-}" ] && command -v compute-sanitizer > /dev/null; then
+    for tool in memcheck initcheck racecheck synccheck; do
+      timeout "${SANITIZE_S:-120}" compute-sanitizer --tool "$tool" --error-exitcode 3 \
+        "$bins/envision4d" splat --ply examples/scene.ply --camera examples/camera.json \
+        --out "$bins/splat-sanitized.png" --backend cuda >> "$log" 2>&1
+      say "compute-sanitizer --tool $tool: exit $? (3: it found errors, listed above)"
+    done
+  fi
 fi
 
 if [ -z "${SKIP_BENCH:-}" ] && [ -x "$bins/raster" ]; then
