@@ -30,7 +30,7 @@ pub struct EvalArgs {
     /// One of our checkpoints (safetensors; carries its model config).
     #[arg(long)]
     checkpoint: PathBuf,
-    /// Training config (TOML): its [model] and [data] (layout, root, seed). Optional when the
+    /// Training config (TOML): its `[model]` and `[data]` (layout, root, seed). Optional when the
     /// checkpoint carries its model config; the data is then read as the synthetic layout.
     #[arg(long)]
     config: Option<PathBuf>,
@@ -108,7 +108,7 @@ pub struct EvalArgs {
     /// context=<t,..> scored=<t,..>`, frame numbers as the source numbers them), and exit.
     #[arg(long)]
     list_windows: bool,
-    /// On synthetic clips: for the first N scored clips, write motion/<clip>_<i>to<j>.png
+    /// On synthetic clips: for the first N scored clips, write `motion/<clip>_<i>to<j>.png`
     /// (true displacement | predicted | end-point error, metres, one colour scale; pair: the
     /// newest context frame to the last future frame) and its .json sidecar.
     #[arg(long, default_value_t = 0)]

@@ -32,7 +32,7 @@ pub struct SplatArgs {
     /// Where to run.
     #[arg(long, value_enum, default_value_t = BackendChoice::Cpu)]
     backend: BackendChoice,
-    /// Background colour behind the splats, as r,g,b in [0,1] (default black).
+    /// Background colour behind the splats, as r,g,b in `[0, 1]` (default black).
     #[arg(long, value_parser = parse_rgb)]
     background: Option<[f64; 3]>,
     /// Which gsplat release's alpha clamp to reproduce.

@@ -18,8 +18,9 @@ use std::time::Instant;
 pub enum SynthLayout {
     /// Ours: DIR/clip_000000/{rgb,depth,flow,dynamic_mask,instance}, cameras.json, ...
     Synth,
-    /// STORM's preprocessed Waymo: DIR/<split>/<scene:03d>/{images,intrinsics,cam_to_ego,
-    /// ego_to_world,cam_to_world,depth_flows_4,lidar}, LiDAR-like depth included.
+    /// STORM's preprocessed Waymo: `DIR/<split>/<scene:03d>/` with `images`, `intrinsics`,
+    /// `cam_to_ego`, `ego_to_world`, `cam_to_world`, `depth_flows_4` and `lidar`, LiDAR-like
+    /// depth included.
     StormWaymo,
     /// The official nuScenes tree: DIR/samples/{CAM_FRONT,LIDAR_TOP}, DIR/v1.0-*/ tables;
     /// clip i becomes the i-th scene of an official split (--split), LiDAR sweeps included.
@@ -28,7 +29,7 @@ pub enum SynthLayout {
 
 #[derive(Args, Debug)]
 pub struct SynthArgs {
-    /// Output folder; clips go to DIR/clip_000000, ... (or DIR/<split>/000, ... with
+    /// Output folder; clips go to `DIR/clip_000000`, ... (or `DIR/<split>/000`, ... with
     /// --layout storm-waymo).
     #[arg(long)]
     out: PathBuf,

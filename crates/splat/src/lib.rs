@@ -9,7 +9,7 @@
 //!
 //! Layers: [`cpu`] is the plain-Rust implementation (generic over f32/f64; f64 is the test
 //! oracle); `kernels` holds the CubeCL kernels for GPU backends; [`backend`] wires both into
-//! Burn as a backend extension with a custom autodiff node; [`render`] is the tensor API.
+//! Burn as a backend extension with a custom autodiff node; [`render`](mod@render) is the tensor API.
 
 pub mod camera;
 pub mod camera_json;

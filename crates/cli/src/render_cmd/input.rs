@@ -26,7 +26,7 @@ pub struct ModelArgs {
     /// One of our own checkpoints (safetensors carrying its model config).
     #[arg(long)]
     checkpoint: Option<PathBuf>,
-    /// Model config: a preset (`paper`, `tiny`) or a TOML file with a [model] table.
+    /// Model config: a preset (`paper`, `tiny`) or a TOML file with a `[model]` table.
     #[arg(long)]
     model_config: Option<String>,
 }

@@ -39,7 +39,7 @@ pub struct SplatGrads<B: Backend> {
 /// says which of the N rows each view renders; `host_cameras` are viewmats and ks as
 /// validation read them (the GPU kernels use them instead of reading the device again; the
 /// host path reads its own copies). Callers validate shapes, sets and cameras first (see
-/// [`crate::render`]).
+/// [`render`](fn@crate::render)).
 #[backend_extension(Cube, Flex, Autodiff)]
 pub trait SplatOps: Backend {
     /// Returns `(image [V,H,W,5], radii [V,R,2] (int; R = [`ViewSets::radii_rows`]), counts

@@ -183,7 +183,7 @@ pub fn quat_to_rotmat(q: Q4) -> M3 {
     )
 }
 
-/// VJP of [`quat_to_rotmat`] (`math::quat_to_rotmat_vjp`).
+/// VJP of [`quat_to_rotmat`](fn@quat_to_rotmat) (`math::quat_to_rotmat_vjp`).
 #[cube]
 pub fn quat_to_rotmat_vjp(q: Q4, g: M3) -> Q4 {
     let (w, x, y, z) = (q.w, q.x, q.y, q.z);

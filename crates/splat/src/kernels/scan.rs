@@ -1,6 +1,6 @@
 //! Exclusive prefix sum of u32 on the device, work-efficient: each cube scans `SCAN_BLOCK`
 //! elements (every unit sums `SCAN_ITEMS` serially, the cube scans those sums in shared
-//! memory, [`scan_blocks`]) and writes its total; the totals are scanned the same way and added back
+//! memory, [`scan_blocks`](fn@scan_blocks)) and writes its total; the totals are scanned the same way and added back
 //! (`scan_add`). O(n) work and O(log n) launches in all, where Burn's cumsum does O(n²).
 //!
 //! Shared memory is met with `sync_cube`, so no unit may leave early: units past the end

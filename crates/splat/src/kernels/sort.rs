@@ -95,7 +95,7 @@ pub fn exclusive_scan(input: &CubeTensor, len_in: usize, len_out: usize) -> Cube
 }
 
 /// Sets `flags[slot]` to 1 when the exclusive scan `offsets[..len]` wrapped past `u32::MAX`
-/// ([`super::scan::scan_wrapped`]); leaves it as it was otherwise. Needs `len >= 2`.
+/// ([`scan_wrapped`](fn@super::scan::scan_wrapped)); leaves it as it was otherwise. Needs `len >= 2`.
 pub fn flag_wrapped(offsets: &CubeTensor, len: usize, flags: &CubeTensor, slot: usize) {
     let client = &offsets.client;
     let dim = CubeDim::new(client, len);

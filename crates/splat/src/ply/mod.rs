@@ -7,8 +7,8 @@
 //! never allocates more than the file can actually hold.
 //!
 //! Layout of this module:
-//! - [`header`]: the text header (format, elements, typed properties);
-//! - [`read`]: the data section (ascii / binary little / big endian);
+//! - `header`: the text header (format, elements, typed properties);
+//! - `read`: the data section (ascii / binary little / big endian);
 //! - [`write`]: binary little-endian output, written atomically.
 
 mod header;
