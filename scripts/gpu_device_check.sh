@@ -97,7 +97,8 @@ if [ -x "$bins/envision4d" ] && [ -z "${SKIP_SPLAT:-}" ]; then
       >> "$log" 2>&1
     say "splat --backend $backend: exit $?"
   done
-  python3 - "$bins/splat-cpu.png" "$bins/splat-cuda.png" >> "$log" 2>&1 <<'PY'
+  # (Through tee, so the comparison also shows in the call's output.)
+  python3 - "$bins/splat-cpu.png" "$bins/splat-cuda.png" 2>&1 <<'PY' | tee -a "$log"
 import os, sys
 if not all(os.path.exists(p) for p in sys.argv[1:]):
     sys.exit("splat parity: a render is missing, not compared")
