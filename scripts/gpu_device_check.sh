@@ -91,10 +91,10 @@ fi
 # each of compute-sanitizer's tools (out-of-bounds and uninitialised reads, shared-memory
 # races, barrier misuse), where the machine has it; each takes SANITIZE_S at most.
 if [ -x "$bins/envision4d" ] && [ -z "${SKIP_SPLAT:-}" ]; then
+  scene=(splat --ply examples/scene.ply --camera examples/camera.json)
   for backend in cpu cuda; do
-    timeout "$DEMO_S" "$bins/envision4d" splat --ply examples/scene.ply \
-      --camera examples/camera.json --out "$bins/splat-$backend.png" --backend "$backend" \
-      >> "$log" 2>&1
+    timeout "$DEMO_S" "$bins/envision4d" "${scene[@]}" --out "$bins/splat-$backend.png" \
+      --backend "$backend" >> "$log" 2>&1
     say "splat --backend $backend: exit $?"
   done
   # (Through tee, so the comparison also shows in the call's output.)
@@ -116,8 +116,8 @@ PY
   if [ -n "${SANITIZE:-}" ] && command -v compute-sanitizer > /dev/null; then
     for tool in memcheck initcheck racecheck synccheck; do
       timeout "${SANITIZE_S:-120}" compute-sanitizer --tool "$tool" --error-exitcode 3 \
-        "$bins/envision4d" splat --ply examples/scene.ply --camera examples/camera.json \
-        --out "$bins/splat-sanitized.png" --backend cuda >> "$log" 2>&1
+        "$bins/envision4d" "${scene[@]}" --out "$bins/splat-sanitized.png" --backend cuda \
+        >> "$log" 2>&1
       say "compute-sanitizer --tool $tool: exit $? (3: it found errors, listed above)"
     done
   fi

@@ -159,14 +159,16 @@ fn probe(what: &str, hint: &str, make: impl FnOnce() -> Device) -> Result<Device
         (device, computed)
     }));
     std::panic::set_hook(quiet);
+    // The first panic of any thread during the probe: it names the cause.
+    let cause = seen.lock().ok().and_then(|seen| seen.first().cloned());
     let (device, computed) = started.map_err(|payload| {
-        let first = seen.lock().ok().and_then(|seen| seen.first().cloned());
-        let cause = first.unwrap_or_else(|| panic_message(payload.as_ref()).to_owned());
+        let cause = cause
+            .clone()
+            .unwrap_or_else(|| panic_message(payload.as_ref()).to_owned());
         InputError(format!("{what}: {hint} (the backend said: {cause})"))
     })?;
-    // On CUDA the compile or link error is a panic on CubeCL's server thread, which the hook
+    // On CUDA a compile or link error is a panic on CubeCL's server thread, which the hook
     // recorded; the read only says that it failed.
-    let cause = seen.lock().ok().and_then(|seen| seen.first().cloned());
     let kernel_failed = |detail: String| {
         let cause = cause
             .as_deref()

@@ -14,17 +14,20 @@ fn to_host<B: Backend>(t: IntTensor<B>) -> Vec<i64> {
         .unwrap_or_else(|e| panic!("splat: tensor conversion failed: {e:?}"))
 }
 
-fn back<B: Backend>(v: Vec<i64>, like: &IntTensor<B>) -> IntTensor<B> {
+/// `v` as a tensor of `like`'s dtype and device. An i32 tensor holds 32-bit patterns, as the
+/// device writes them: a value past `i32::MAX` (a u32 sum) is stored as its bits, read
+/// negative, where the checked conversion would refuse it.
+fn back<B: Backend>(mut v: Vec<i64>, like: &IntTensor<B>) -> IntTensor<B> {
     let len = v.len();
+    if like.dtype() == burn::tensor::DType::I32 {
+        for x in &mut v {
+            *x = i64::from(bits32(*x) as i32);
+        }
+    }
     B::int_from_data(
         TensorData::new(v, [len]).convert_dtype(like.dtype()),
         &like.device(),
     )
-}
-
-/// Whether `t` stores i32, whose values are 32-bit patterns read as signed.
-fn like_i32<B: Backend>(t: &IntTensor<B>) -> bool {
-    t.dtype() == burn::tensor::DType::I32
 }
 
 /// The low 32 bits of `x`, as the device reads a 32-bit integer.
@@ -64,17 +67,10 @@ pub fn exclusive_scan<B: Backend>(values: IntTensor<B>) -> IntTensor<B> {
     let mut out = Vec::with_capacity(v.len() + 1);
     let mut total = 0u32;
     out.push(0);
-    // An i32 tensor holds the sums' 32-bit patterns, as the device writes them (a sum past
-    // i32::MAX reads negative there); i64 would refuse the conversion otherwise.
-    let signed = like_i32::<B>(&values);
     for &x in &v {
         // The device sums in u32 and wraps; so does this.
         total = total.wrapping_add(bits32(x));
-        out.push(if signed {
-            i64::from(total as i32)
-        } else {
-            i64::from(total)
-        });
+        out.push(i64::from(total));
     }
     back::<B>(out, &values)
 }
