@@ -1,0 +1,51 @@
+//! The offline PTX check (`examples/ptx_check.rs`) must list every kernel: it is the only
+//! place a kernel meets the CUDA route before a GPU lease, and it builds only with the `cuda`
+//! feature, so nothing else notices a kernel added without it.
+
+use std::collections::BTreeSet;
+use std::path::Path;
+
+/// The names of the `#[cube(launch)]` functions in one kernel source file.
+fn launched(source: &str) -> Vec<String> {
+    let mut names = Vec::new();
+    let mut pending = false;
+    for line in source.lines().map(str::trim) {
+        if line.starts_with("#[cube(launch") {
+            pending = true;
+        } else if pending {
+            if let Some(rest) = line.strip_prefix("pub fn ").or(line.strip_prefix("fn ")) {
+                let name: String = rest
+                    .chars()
+                    .take_while(|c| c.is_alphanumeric() || *c == '_')
+                    .collect();
+                names.push(name);
+                pending = false;
+            }
+        }
+    }
+    names
+}
+
+/// Guards against a kernel (such as `scan_wrapped`, once) that ships without being
+/// lowered to PTX offline: every launchable kernel appears in ptx_check's list by name.
+#[test]
+fn ptx_check_lists_every_launchable_kernel() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let check = std::fs::read_to_string(root.join("examples/ptx_check.rs")).unwrap();
+    let listed: BTreeSet<String> = check
+        .lines()
+        .filter_map(|l| l.trim().strip_prefix("kernel!(\""))
+        .filter_map(|l| l.split(['"', '<']).next())
+        .map(str::to_owned)
+        .collect();
+    let mut kernels = BTreeSet::new();
+    for entry in std::fs::read_dir(root.join("src/kernels")).unwrap() {
+        let path = entry.unwrap().path();
+        if path.extension().is_some_and(|e| e == "rs") {
+            kernels.extend(launched(&std::fs::read_to_string(&path).unwrap()));
+        }
+    }
+    assert!(kernels.len() >= 17, "too few kernels found: {kernels:?}");
+    let missing: Vec<_> = kernels.difference(&listed).collect();
+    assert!(missing.is_empty(), "kernels not in ptx_check: {missing:?}");
+}
