@@ -81,7 +81,9 @@ fn outputs_mean_sum(p: &Predictions) -> Tensor<1> {
     total
 }
 
-/// One pass; returns its wall time in seconds (reading a scalar back forces the compute).
+/// One pass; returns its wall time in seconds. The clock stops when the device has finished
+/// all the pass's work: GPU backends return from launches, and from `into_data` (a lazy
+/// read), before it is done.
 fn pass(model: &Envision4d, images: &Tensor<5>, heads: Heads, train: bool) -> f64 {
     let t = Instant::now();
     let out = model.forward(images.clone(), heads);
@@ -90,8 +92,13 @@ fn pass(model: &Envision4d, images: &Tensor<5>, heads: Heads, train: bool) -> f6
         let grads = loss.backward();
         drop(grads);
     } else {
-        let _ = loss.into_data();
+        // The bytes touched, so the read-back itself is timed too.
+        let _ = loss.into_data().as_bytes().len();
     }
+    images
+        .device()
+        .sync()
+        .expect("the device failed during a timed pass");
     t.elapsed().as_secs_f64()
 }
 

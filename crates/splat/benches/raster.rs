@@ -111,16 +111,31 @@ fn tensors(s: &HostScene, device: &Device, grad: bool) -> (Gaussians, Cameras) {
     (g, Cameras::from_host(&[viewmat], &[k], W, H, device))
 }
 
-fn time<T>(reps: usize, mut f: impl FnMut() -> T) -> Duration {
-    f(); // warm-up (autotune, kernel compilation, allocations)
+/// The best of `reps` timed runs of `f` after one warm-up, each ending when `device` has
+/// finished all the work queued: GPU backends return from launches (and from `into_data`,
+/// which reads back lazily) before the work is done, so a clock stopped there measures the
+/// launches alone (that once gave a million-key sort in 0.3 ms on lavapipe).
+fn time(reps: usize, device: &Device, mut f: impl FnMut() -> usize) -> Duration {
+    let mut run = || {
+        let bytes = f();
+        device.sync().expect("the device failed during a timed run");
+        bytes
+    };
+    run(); // warm-up (autotune, kernel compilation, allocations)
     (0..reps)
         .map(|_| {
             let t = Instant::now();
-            f();
+            run();
             t.elapsed()
         })
         .min()
         .unwrap()
+}
+
+/// Touches a read-back tensor's bytes, so the device-to-host copy (lazy on CubeCL backends)
+/// happens inside the timed run; returns their count.
+fn read(data: TensorData) -> usize {
+    data.as_bytes().len()
 }
 
 fn main() {
@@ -170,13 +185,15 @@ fn main() {
                 .unwrap();
             // Upper bound of Gaussian-pixel evaluations: every tile pair visits 256 pixels.
             let pairs = counts[1] as f64 * 256.0;
-            let fwd = time(reps, || render(&g, &c, &cfg).unwrap().rgb.into_data());
+            let fwd = time(reps, &device, || {
+                read(render(&g, &c, &cfg).unwrap().rgb.into_data())
+            });
             let ad = device.clone().autodiff();
             let (ga, ca) = tensors(&scene, &ad, true);
-            let fb = time(reps, || {
+            let fb = time(reps, &device, || {
                 let out = render(&ga, &ca, &cfg).unwrap();
                 let grads = (out.rgb.sum() + out.depth.sum() * 0.01).backward();
-                ga.means.grad(&grads).unwrap().into_data()
+                read(ga.means.grad(&grads).unwrap().into_data())
             });
             json_rows.push(format!(
                 "{{\"kind\":\"raster\",\"backend\":\"{name}\",\"gaussians\":{n},\
@@ -211,11 +228,13 @@ fn main() {
             let (k32, k12, vals) = (ints(&keys), ints(&small), ints(&small));
             let sort = |k: &Tensor<1, Int>, bits| {
                 let (k, v) = sort_pairs(k.clone(), vals.clone(), bits).unwrap();
-                (k.into_data(), v.into_data())
+                read(k.into_data()) + read(v.into_data())
             };
-            let t32 = time(reps, || sort(&k32, 32));
-            let t12 = time(reps, || sort(&k12, 12));
-            let ts = time(reps, || exclusive_scan(k12.clone()).unwrap().into_data());
+            let t32 = time(reps, &device, || sort(&k32, 32));
+            let t12 = time(reps, &device, || sort(&k12, 12));
+            let ts = time(reps, &device, || {
+                read(exclusive_scan(k12.clone()).unwrap().into_data())
+            });
             json_rows.push(format!(
                 "{{\"kind\":\"sort\",\"backend\":\"{name}\",\"elements\":{n},\
                  \"sort32_ms\":{:.3},\"sort12_ms\":{:.3},\"scan_ms\":{:.3}}}",

@@ -155,6 +155,11 @@ fn main() {
         trainer.step = step;
         let t = Instant::now();
         let r = trainer.train_step(&batch).unwrap_or_else(|e| panic!("{e}"));
+        // The step reads its losses and checks back, but the optimizer's last update may
+        // still be queued on a GPU backend: the clock stops when the device is done.
+        device
+            .sync()
+            .unwrap_or_else(|e| panic!("the device failed during a step: {e:?}"));
         let s = t.elapsed().as_secs_f64();
         if i == 0 {
             println!(

@@ -194,6 +194,11 @@ pub fn predict_and_write(
     } else {
         Pass::PosesOnly(predict_cameras(model, images))
     };
+    // GPU backends queue the work and read back lazily: wait for it, or the time would be
+    // the launches' alone.
+    device
+        .sync()
+        .map_err(|e| anyhow!("the device failed during the forward pass: {e:?}"))?;
     let forward = t1.elapsed();
     bar.inc(1);
     let mut notes = Vec::new();
