@@ -12,15 +12,17 @@ fn launched(source: &str) -> Vec<String> {
     for line in source.lines().map(str::trim) {
         if line.starts_with("#[cube(launch") {
             pending = true;
-        } else if pending {
-            if let Some(rest) = line.strip_prefix("pub fn ").or(line.strip_prefix("fn ")) {
-                let name: String = rest
-                    .chars()
-                    .take_while(|c| c.is_alphanumeric() || *c == '_')
-                    .collect();
-                names.push(name);
-                pending = false;
-            }
+        } else if let Some(rest) = line
+            .strip_prefix("pub fn ")
+            .or(line.strip_prefix("fn "))
+            .filter(|_| pending)
+        {
+            let name: String = rest
+                .chars()
+                .take_while(|c| c.is_alphanumeric() || *c == '_')
+                .collect();
+            names.push(name);
+            pending = false;
         }
     }
     names
