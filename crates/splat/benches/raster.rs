@@ -117,9 +117,8 @@ fn tensors(s: &HostScene, device: &Device, grad: bool) -> (Gaussians, Cameras) {
 /// launches alone (that once gave a million-key sort in 0.3 ms on lavapipe).
 fn time(reps: usize, device: &Device, mut f: impl FnMut() -> usize) -> Duration {
     let mut run = || {
-        let bytes = f();
+        f();
         device.sync().expect("the device failed during a timed run");
-        bytes
     };
     run(); // warm-up (autotune, kernel compilation, allocations)
     (0..reps)
