@@ -12,6 +12,8 @@
 #   PRECISIONS=f32 scripts/gpu_bench.sh           # the forward in f32 only (default f32 f16 bf16)
 #   SKIP_MODEL=1 scripts/gpu_bench.sh             # the rasterizer only
 #   BACKENDS=cuda CUDA=1 scripts/gpu_bench.sh     # one backend only
+#   COMPARE_AT=100000 scripts/gpu_bench.sh        # the tile schedules compared at this size
+#                                                 # (default 362600; empty: not compared)
 #
 # Each backend runs whole (rasterizer, then model) before the next, CUDA first, and the
 # table is rewritten after every section: a run stopped by a timeout keeps what it measured.
@@ -43,6 +45,9 @@ MODEL_MODES=${MODEL_MODES:-forward train}
 # gets a NaN row: wgpu has no bf16).
 PRECISIONS=${PRECISIONS:-f32 f16 bf16}
 BACKENDS=${BACKENDS:-$DEFAULT_BACKENDS}
+# One scene rendered with both tile schedules of the compositing kernels (`TileSchedule`):
+# the evidence for what `auto` picks on each device.
+COMPARE_AT=${COMPARE_AT-362600}
 mkdir -p "$OUT"
 export XDG_RUNTIME_DIR="${XDG_RUNTIME_DIR:-$(mktemp -d)}"
 # A bench binary: the given path, or built here (its path ends cargo's "Executable" line).
@@ -114,6 +119,14 @@ for b in ${BACKENDS//,/ }; do
   "$BIN" --backends "$b" --sizes "$SIZES" --json "$OUT/raster-$b.json" | tee -a "$OUT/raster.md.tmp" \
     || echo "raster bench on $b failed (exit ${PIPESTATUS[0]}; its messages are in the run's log)" | tee -a "$OUT/raster.md.tmp"
   write_table
+  if [ -n "$COMPARE_AT" ]; then
+    echo "== tile schedules on $b at $COMPARE_AT Gaussians"
+    echo -e "\nTile schedules compared:\n" >> "$OUT/raster.md.tmp"
+    "$BIN" --backends "$b" --sizes "$COMPARE_AT" --schedules shared,per-pixel --no-sort \
+      --json "$OUT/schedules-$b.json" | tee -a "$OUT/raster.md.tmp" \
+      || echo "schedule comparison on $b failed (exit ${PIPESTATUS[0]})" | tee -a "$OUT/raster.md.tmp"
+    write_table
+  fi
   [ -z "${SKIP_MODEL:-}" ] || continue
   for mode in $MODEL_MODES; do
     echo "== model $MODEL_PRESET at $MODEL_IMAGE, $mode, $b"

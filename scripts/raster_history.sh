@@ -6,6 +6,7 @@
 #
 #   scripts/raster_history.sh 68385f9 475f64a HEAD          # tables in runs/raster-history
 #   OUT=dir SIZES=10000 scripts/raster_history.sh 475f64a HEAD
+#   SCHEDULES=auto scripts/raster_history.sh HEAD          # one tile schedule (default: all)
 #
 # Benches before 37a5503 stopped the clock at `into_data`, which on CubeCL backends returns
 # before the kernels run (the read is lazy, done at the bytes' first access): their `time`
@@ -17,6 +18,8 @@ cd "$(dirname "$0")/.."
 root=$PWD
 OUT=${OUT:-runs/raster-history}
 SIZES=${SIZES:-10000,100000}
+# Tile schedules of the compositing kernels, for benches that have them (`--schedules`).
+SCHEDULES=${SCHEDULES:-auto,shared,per-pixel}
 export CARGO_TARGET_DIR=${CARGO_TARGET_DIR:-$HOME/.cache/envision4d-target}
 export XDG_RUNTIME_DIR=${XDG_RUNTIME_DIR:-$(mktemp -d)}
 [ $# -gt 0 ] || { echo "usage: scripts/raster_history.sh COMMIT..." >&2; exit 2; }
@@ -72,6 +75,9 @@ for commit in "$@"; do
   else
     max=$(echo "$SIZES" | tr ',' '\n' | sort -n | tail -1)
     args=(--wgpu --max-gaussians "$max")
+  fi
+  if grep -q -- "--schedules" "$bin"; then
+    args+=(--schedules "$SCHEDULES")
   fi
   {
     echo "### $id ($(git log -1 --format=%cs "$id")): ${args[*]}"

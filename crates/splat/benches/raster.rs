@@ -4,6 +4,8 @@
 //! `cargo bench -p envision4d-splat --bench raster [-- --wgpu] [--quick] [--max-gaussians N]`
 //! `... -- --backends wgpu,cuda --sizes 362600,1000000,3000000 --json FILE` (what
 //! `scripts/gpu_bench.sh` runs; `cuda` needs `--features envision4d-splat/cuda`).
+//! `--schedules auto,shared,per-pixel` times each tile schedule of the compositing kernels
+//! (`TileSchedule`; default `auto`); `--no-sort` skips the sort and scan table.
 //! Prints ms per view and Gaussian-tile pairs per second, then the binning's building blocks
 //! alone (the stable sort of 32-bit keys and the exclusive scan, results read back); results
 //! go to docs/PERFORMANCE.md. Scenes past 362,600 Gaussians take more frames of the street.
@@ -12,7 +14,7 @@ use burn::tensor::{DType, Int, Tensor, TensorData};
 use burn::tensor::{Device, DeviceKind};
 use envision4d_splat::primitives::{exclusive_scan, sort_pairs};
 use envision4d_splat::testkit::{look_at, HostScene, SplitMix64};
-use envision4d_splat::{render, Cameras, Gaussians, RasterConfig};
+use envision4d_splat::{render, Cameras, Gaussians, RasterConfig, TileSchedule};
 use std::time::{Duration, Instant};
 
 const W: u32 = 518;
@@ -159,9 +161,13 @@ fn main() {
             .collect(),
         None => vec![10_000, 100_000, full.len()],
     };
+    let schedules: Vec<(&str, TileSchedule)> = arg(&args, "--schedules")
+        .unwrap_or_else(|| "auto".into())
+        .split(',')
+        .map(schedule)
+        .collect();
     let mut json_rows = Vec::new();
     let sort_devices = devices.clone();
-    let cfg = RasterConfig::default();
     println!(
         "machine: {} logical cores; image {W}x{H}; min of {reps} runs after 1 warm-up",
         std::thread::available_parallelism()
@@ -170,10 +176,31 @@ fn main() {
     );
     println!("| backend | Gaussians | visible | tile pairs | forward ms/view | fwd+bwd ms/view | fwd pairs/s | fwd+bwd pairs/s |");
     println!("|---|---|---|---|---|---|---|---|");
-    for (name, device) in devices {
+    // The CPU path has no tile schedule (it picks GPU kernels): one row set for it.
+    let runs = devices.iter().flat_map(|d| {
+        let take = if d.0.starts_with("cpu") {
+            1
+        } else {
+            schedules.len()
+        };
+        schedules.iter().take(take).map(move |s| (d, s))
+    });
+    for ((backend, device), &(sched_name, tile_schedule)) in runs {
+        let cfg = RasterConfig {
+            tile_schedule,
+            ..RasterConfig::default()
+        };
+        let (name, sched_json) = if backend.starts_with("cpu") {
+            (backend.to_string(), "null".to_owned())
+        } else {
+            (
+                format!("{backend} ({sched_name})"),
+                format!("\"{sched_name}\""),
+            )
+        };
         for &n in sizes.iter().filter(|n| **n <= max_n) {
             let scene = scene_of(&full, n);
-            let (g, c) = tensors(&scene, &device, false);
+            let (g, c) = tensors(&scene, device, false);
             let out = render(&g, &c, &cfg).unwrap();
             let counts = out
                 .meta
@@ -184,19 +211,19 @@ fn main() {
                 .unwrap();
             // Upper bound of Gaussian-pixel evaluations: every tile pair visits 256 pixels.
             let pairs = counts[1] as f64 * 256.0;
-            let fwd = time(reps, &device, || {
+            let fwd = time(reps, device, || {
                 read(render(&g, &c, &cfg).unwrap().rgb.into_data())
             });
             let ad = device.clone().autodiff();
             let (ga, ca) = tensors(&scene, &ad, true);
-            let fb = time(reps, &device, || {
+            let fb = time(reps, device, || {
                 let out = render(&ga, &ca, &cfg).unwrap();
                 let grads = (out.rgb.sum() + out.depth.sum() * 0.01).backward();
                 read(ga.means.grad(&grads).unwrap().into_data())
             });
             json_rows.push(format!(
-                "{{\"kind\":\"raster\",\"backend\":\"{name}\",\"gaussians\":{n},\
-                 \"visible\":{},\"tile_pairs\":{},\"forward_ms\":{:.3},\"fwd_bwd_ms\":{:.3}}}",
+                "{{\"kind\":\"raster\",\"backend\":\"{backend}\",\"schedule\":{sched_json},\
+                 \"gaussians\":{n},\"visible\":{},\"tile_pairs\":{},\"forward_ms\":{:.3},\"fwd_bwd_ms\":{:.3}}}",
                 counts[0],
                 counts[1],
                 fwd.as_secs_f64() * 1e3,
@@ -213,9 +240,16 @@ fn main() {
             );
         }
     }
-    println!();
-    println!("| backend | elements | sort, 32-bit keys, ms | sort, 12-bit keys, ms | scan ms |");
-    println!("|---|---|---|---|---|");
+    let sort_devices = if args.iter().any(|a| a == "--no-sort") {
+        Vec::new()
+    } else {
+        println!();
+        println!(
+            "| backend | elements | sort, 32-bit keys, ms | sort, 12-bit keys, ms | scan ms |"
+        );
+        println!("|---|---|---|---|---|");
+        sort_devices
+    };
     for (name, device) in sort_devices {
         for n in [100_000usize, 1_000_000] {
             let mut rng = SplitMix64::new(n as u64);
@@ -261,6 +295,16 @@ fn arg(args: &[String], name: &str) -> Option<String> {
     args.iter()
         .position(|a| a == name)
         .and_then(|i| args.get(i + 1).cloned())
+}
+
+/// A name of `--schedules` as its tile schedule.
+fn schedule(name: &str) -> (&'static str, TileSchedule) {
+    match name {
+        "auto" => ("auto", TileSchedule::Auto),
+        "shared" => ("shared", TileSchedule::SharedBatches),
+        "per-pixel" => ("per pixel", TileSchedule::PerPixel),
+        other => panic!("--schedules: {other} is not a tile schedule (auto, shared, per-pixel)"),
+    }
 }
 
 /// A backend name of `--backends` as its device.

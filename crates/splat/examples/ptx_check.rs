@@ -20,7 +20,7 @@ use envision4d_splat::kernels::rasterize_backward::{CasAdd, NativeAdd};
 use envision4d_splat::kernels::rasterize_forward::TILE;
 use envision4d_splat::kernels::{
     bin_tiles, camera_grad, project_backward, project_forward, radix_sort, rasterize_backward,
-    rasterize_forward, scan, view_meta,
+    rasterize_backward_per_pixel, rasterize_forward, rasterize_forward_per_pixel, scan, view_meta,
 };
 use std::ffi::CStr;
 use std::sync::Arc;
@@ -139,6 +139,9 @@ fn main() {
         kernel!("rasterize_backward<NativeAdd>", rasterize_backward::rasterize_backward::RasterizeBackward::<NativeAdd>, Tile, [T T T T T s s s s s s s]),
         kernel!("rasterize_backward<CasAdd>", rasterize_backward::rasterize_backward::RasterizeBackward::<CasAdd>, Tile, [T T T T T s s s s s s s]),
         kernel!("rasterize_forward", rasterize_forward::rasterize_forward::RasterizeForward, Tile, [T T T T s s s s s s s]),
+        kernel!("rasterize_backward_per_pixel<NativeAdd>", rasterize_backward_per_pixel::rasterize_backward_per_pixel::RasterizeBackwardPerPixel::<NativeAdd>, Tile, [T T T T T s s s s s s s]),
+        kernel!("rasterize_backward_per_pixel<CasAdd>", rasterize_backward_per_pixel::rasterize_backward_per_pixel::RasterizeBackwardPerPixel::<CasAdd>, Tile, [T T T T T s s s s s s s]),
+        kernel!("rasterize_forward_per_pixel", rasterize_forward_per_pixel::rasterize_forward_per_pixel::RasterizeForwardPerPixel, Tile, [T T T T s s s s s s s]),
         kernel!("scan_blocks", scan::scan_blocks::ScanBlocks, Line, [T T T s s s]),
         kernel!("scan_add", scan::scan_add::ScanAdd, Line, [T T s]),
         kernel!("scan_wrapped", scan::scan_wrapped::ScanWrapped, Line, [T T s s]),

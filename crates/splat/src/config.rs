@@ -54,6 +54,23 @@ pub enum GradAccumulation {
     CompareAndSwap,
 }
 
+/// How the GPU compositing kernels walk a tile's Gaussians (results agree to rounding; the
+/// choice is speed only).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum TileSchedule {
+    /// Shared batches on a GPU; per pixel on a device that is no card (a software adapter
+    /// such as Mesa's lavapipe), where shared memory is ordinary memory and every barrier
+    /// suspends and resumes the cube's SIMD groups, so batching saves nothing and costs.
+    #[default]
+    Auto,
+    /// The cube copies each batch of records into shared memory once for its 256 pixels and
+    /// stops when every pixel has (two barriers per batch): the GPU schedule.
+    SharedBatches,
+    /// Every unit reads its records from global memory and stops on its own; no barrier.
+    PerPixel,
+}
+
 /// The rasterizer's numeric settings. `RasterConfig::default()` is gsplat 1.5.3.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -77,6 +94,9 @@ pub struct RasterConfig {
     /// Gradient accumulation of the GPU backward (results agree; not part of a report).
     #[serde(skip)]
     pub grad_accumulation: GradAccumulation,
+    /// Tile walk of the GPU compositing kernels (results agree; not part of a report).
+    #[serde(skip)]
+    pub tile_schedule: TileSchedule,
 }
 
 impl Default for RasterConfig {
@@ -91,6 +111,7 @@ impl Default for RasterConfig {
             depth_eps: 1e-10,
             background: None,
             grad_accumulation: GradAccumulation::Auto,
+            tile_schedule: TileSchedule::Auto,
         }
     }
 }

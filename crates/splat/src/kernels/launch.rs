@@ -10,11 +10,12 @@ use super::binning::{bins_of_view, order_view, DepthOrder, DeviceBins};
 use super::math::CAM_LANES;
 use super::project_forward::{project_forward, META_LANES, RECORD_LANES};
 use super::rasterize_forward::{rasterize_forward, OUT_CHANNELS, TILE};
+use super::rasterize_forward_per_pixel::rasterize_forward_per_pixel;
 use super::readback::read_u32s;
 use super::sort::{empty_u32, exclusive_scan, retype};
 use super::view_meta::{radii_and_flags, view_counts};
 use crate::camera::Camera;
-use crate::config::RasterConfig;
+use crate::config::{RasterConfig, TileSchedule};
 use crate::views::{HostCameras, ViewSets};
 use burn::backend::ops::{FloatTensorOps, IntTensorOps};
 use burn::backend::tensor::{FloatTensor, IntTensor};
@@ -308,6 +309,17 @@ fn write_view_meta(inp: &Inputs, v: usize, vb: &ViewBins, radii: &CubeTensor, co
     );
 }
 
+/// Whether the compositing kernels batch records through shared memory ([`TileSchedule`]).
+/// `Auto` batches on a card and not on a device that is none: CubeCL reports no physical
+/// device exactly for a software adapter (wgpu's `DeviceType::Cpu`, e.g. lavapipe).
+pub(super) fn shared_batches(like: &CubeTensor, schedule: TileSchedule) -> bool {
+    match schedule {
+        TileSchedule::SharedBatches => true,
+        TileSchedule::PerPixel => false,
+        TileSchedule::Auto => like.client.properties().identity.physical.is_some(),
+    }
+}
+
 pub(super) fn tile_grid(inp: &Inputs) -> (CubeCount, CubeDim) {
     let (tx, ty) = (inp.width.div_ceil(TILE), inp.height.div_ceil(TILE));
     (CubeCount::Static(tx, ty, 1), CubeDim::new_2d(TILE, TILE))
@@ -333,6 +345,11 @@ pub fn forward(
     // Zero-filled, so views and Gaussians with nothing to say need no launch.
     let radii = zeros_u32(&inp.means, v_count * r * 2);
     let counts = zeros_u32(&inp.means, v_count * 2);
+    let composite = if shared_batches(&inp.means, cfg.tile_schedule) {
+        rasterize_forward::launch
+    } else {
+        rasterize_forward_per_pixel::launch
+    };
     for (v, vb) in project_and_bin_all(inp, cfg).into_iter().enumerate() {
         let Some(vb) = vb else {
             continue;
@@ -342,7 +359,7 @@ pub fn forward(
             continue;
         };
         let (count, dim) = tile_grid(inp);
-        rasterize_forward::launch(
+        composite(
             &inp.means.client,
             count,
             dim,

@@ -4,10 +4,13 @@
 //! binning are recomputed with the forward's code (`launch.rs`).
 
 use super::camera_grad::camera_grad_matrices;
-use super::launch::{flat, project_and_bin_all, tile_grid, view_offset, zeros, Inputs};
+use super::launch::{
+    flat, project_and_bin_all, shared_batches, tile_grid, view_offset, zeros, Inputs,
+};
 use super::project_backward::{project_backward, CAM_GRAD_LANES};
 use super::project_forward::RECORD_LANES;
 use super::rasterize_backward::{rasterize_backward, CasAdd, NativeAdd};
+use super::rasterize_backward_per_pixel::rasterize_backward_per_pixel;
 use crate::backend::SplatGrads;
 use crate::config::RasterConfig;
 use burn::backend::ops::FloatTensorOps;
@@ -46,6 +49,7 @@ pub fn backward(
     );
     let native = has_float_atomic_add(&inp.means)
         && cfg.grad_accumulation != crate::config::GradAccumulation::CompareAndSwap;
+    let batched = shared_batches(&inp.means, cfg.tile_schedule);
     for (v, vb) in project_and_bin_all(inp, cfg).into_iter().enumerate() {
         let Some(vb) = vb else {
             continue;
@@ -54,10 +58,11 @@ pub fn backward(
             let (first, n) = (vb.first, vb.rows);
             let v_proj = zeros(&inp.means, n * RECORD_LANES);
             let (count, dim) = tile_grid(inp);
-            let launch = if native {
-                rasterize_backward::launch::<NativeAdd>
-            } else {
-                rasterize_backward::launch::<CasAdd>
+            let launch = match (native, batched) {
+                (true, true) => rasterize_backward::launch::<NativeAdd>,
+                (false, true) => rasterize_backward::launch::<CasAdd>,
+                (true, false) => rasterize_backward_per_pixel::launch::<NativeAdd>,
+                (false, false) => rasterize_backward_per_pixel::launch::<CasAdd>,
             };
             launch(
                 &inp.means.client,

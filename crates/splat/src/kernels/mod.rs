@@ -7,8 +7,10 @@
 //! Gaussian) pairs →
 //! stable radix sort by tile → CSR tile ranges; exactly the order of
 //! [`crate::cpu::bins::bin_tiles`]) → `rasterize_forward` (cube per 16x16 tile, thread per
-//! pixel); radii and counts by `view_meta`. Backward: the same projection and binning, then
-//! `rasterize_backward` (atomics into per-Gaussian lanes) and `project_backward` (thread per
+//! pixel, records in shared-memory batches; `rasterize_forward_per_pixel` without them, for
+//! a software adapter, see [`crate::config::TileSchedule`]); radii and counts by
+//! `view_meta`. Backward: the same projection and binning, then `rasterize_backward` or
+//! `rasterize_backward_per_pixel` (atomics into per-Gaussian lanes) and `project_backward` (thread per
 //! Gaussian, camera partials reduced with Burn ops). The sort and scan (`radix_sort`, `scan`,
 //! host side `sort`) are general and also exposed as tensor functions
 //! ([`crate::primitives`]).
@@ -27,7 +29,9 @@ pub mod project_backward;
 pub mod project_forward;
 pub mod radix_sort;
 pub mod rasterize_backward;
+pub mod rasterize_backward_per_pixel;
 pub mod rasterize_forward;
+pub mod rasterize_forward_per_pixel;
 pub mod readback;
 pub mod scan;
 pub mod sort;

@@ -12,7 +12,7 @@
 
 use super::project_forward::RECORD_LANES;
 use super::rasterize_forward::{
-    eval_batched, load_batch, BATCH, BATCH_SHARED, OUT_CHANNELS, SHARED_LANES, TILE,
+    eval_batched, load_batch, Eval, BATCH, BATCH_SHARED, OUT_CHANNELS, SHARED_LANES, TILE,
 };
 use cubecl::prelude::*;
 
@@ -59,6 +59,133 @@ impl GradAdd for CasAdd {
             }
         }
     }
+}
+
+/// A pixel's upstream gradient, one per output channel, and its final transmittance.
+#[derive(CubeType, Clone, Copy)]
+#[expand(derive(Clone, Copy))]
+pub struct Upstream {
+    pub r: f32,
+    pub g: f32,
+    pub b: f32,
+    pub d: f32,
+    pub a: f32,
+    pub t_final: f32,
+}
+
+/// The reverse pass's running state at a pixel: the transmittance in front of the next
+/// splat, and the colour and depth composited behind it.
+#[derive(CubeType)]
+pub struct Behind {
+    pub t: f32,
+    pub r: f32,
+    pub g: f32,
+    pub b: f32,
+    pub d: f32,
+}
+
+#[cube]
+impl Behind {
+    /// Nothing behind yet, transmittance `t_final`: the state past the last composited splat.
+    pub fn new(t_final: f32) -> Behind {
+        Behind {
+            t: t_final,
+            r: 0.0f32,
+            g: 0.0f32,
+            b: 0.0f32,
+            d: 0.0f32,
+        }
+    }
+}
+
+/// The record lanes the gradient reads besides the evaluation: conic, opacity, colour, depth.
+#[derive(CubeType, Clone, Copy)]
+#[expand(derive(Clone, Copy))]
+pub struct Shade {
+    pub q00: f32,
+    pub q01: f32,
+    pub q11: f32,
+    pub opacity: f32,
+    pub r: f32,
+    pub g: f32,
+    pub b: f32,
+    pub d: f32,
+}
+
+/// The [`Shade`] of the batched record at `s`.
+#[cube]
+pub fn shade_of_batch(batch: &[f32], s: usize) -> Shade {
+    Shade {
+        q00: batch[s + 2],
+        q01: batch[s + 3],
+        q11: batch[s + 4],
+        opacity: batch[s + 5],
+        r: batch[s + 6],
+        g: batch[s + 7],
+        b: batch[s + 8],
+        d: batch[s + 9],
+    }
+}
+
+/// The [`Shade`] of the record at `rec` in global memory.
+#[cube]
+pub fn shade_of_record(records: &Tensor<f32>, rec: usize) -> Shade {
+    Shade {
+        q00: records[rec + 2],
+        q01: records[rec + 3],
+        q11: records[rec + 4],
+        opacity: records[rec + 5],
+        r: records[rec + 6],
+        g: records[rec + 7],
+        b: records[rec + 8],
+        d: records[rec + 9],
+    }
+}
+
+/// One splat of the reverse pass (composited, evaluation `e`): adds its gradient lanes into
+/// Gaussian `id`'s row of `v_proj` and steps `state` in front of it. Both backward kernels
+/// come here, so their formulas cannot diverge.
+#[cube]
+pub fn reverse_step<A: GradAdd>(
+    v_proj: &mut Tensor<Atomic<A::Proxy>>,
+    id: usize,
+    e: Eval,
+    sh: Shade,
+    up: Upstream,
+    state: &mut Behind,
+    alpha_max: f32,
+) {
+    let one_minus = 1.0f32 - e.alpha;
+    let t_i = state.t / one_minus;
+    let fac = e.alpha * t_i;
+    let lane = id * RECORD_LANES;
+    A::add(&mut v_proj[lane + 6], fac * up.r);
+    A::add(&mut v_proj[lane + 7], fac * up.g);
+    A::add(&mut v_proj[lane + 8], fac * up.b);
+    A::add(&mut v_proj[lane + 9], fac * up.d);
+    let mut v_alpha = up.a * up.t_final / one_minus;
+    v_alpha += up.r * (sh.r * t_i - state.r / one_minus);
+    v_alpha += up.g * (sh.g * t_i - state.g / one_minus);
+    v_alpha += up.b * (sh.b * t_i - state.b / one_minus);
+    v_alpha += up.d * (sh.d * t_i - state.d / one_minus);
+    // When the clamp is active alpha no longer depends on opacity or geometry.
+    if sh.opacity * e.vis <= alpha_max {
+        let v_sigma = (0.0f32 - sh.opacity) * e.vis * v_alpha;
+        A::add(&mut v_proj[lane], v_sigma * (sh.q00 * e.dx + sh.q01 * e.dy));
+        A::add(
+            &mut v_proj[lane + 1],
+            v_sigma * (sh.q01 * e.dx + sh.q11 * e.dy),
+        );
+        A::add(&mut v_proj[lane + 2], 0.5f32 * e.dx * e.dx * v_sigma);
+        A::add(&mut v_proj[lane + 3], e.dx * e.dy * v_sigma);
+        A::add(&mut v_proj[lane + 4], 0.5f32 * e.dy * e.dy * v_sigma);
+        A::add(&mut v_proj[lane + 5], e.vis * v_alpha);
+    }
+    state.r += sh.r * fac;
+    state.g += sh.g * fac;
+    state.b += sh.b * fac;
+    state.d += sh.d * fac;
+    state.t = t_i;
 }
 
 #[cube(launch)]
@@ -170,11 +297,15 @@ pub fn rasterize_backward<A: GradAdd>(
 
     // Pass 2: back to front from the furthest end. Every non-skipped item in [start, last)
     // of this pixel was composited.
-    let mut t_cur = t_final;
-    let mut behind_r = 0.0f32;
-    let mut behind_g = 0.0f32;
-    let mut behind_b = 0.0f32;
-    let mut behind_d = 0.0f32;
+    let up = Upstream {
+        r: g_r,
+        g: g_g,
+        b: g_b,
+        d: g_d,
+        a: g_a,
+        t_final,
+    };
+    let mut state = Behind::new(t_final);
     let mut top = reach;
     while top > start {
         let mut first = start;
@@ -193,39 +324,9 @@ pub fn rasterize_backward<A: GradAdd>(
                     let s = (k - first) as usize * SHARED_LANES;
                     let e = eval_batched(&batch, s, px, py, alpha_min, alpha_max);
                     if !e.skip {
-                        let one_minus = 1.0f32 - e.alpha;
-                        let t_i = t_cur / one_minus;
-                        let fac = e.alpha * t_i;
-                        let lane = ids[(k - first) as usize] as usize * RECORD_LANES;
-                        A::add(&mut v_proj[lane + 6], fac * g_r);
-                        A::add(&mut v_proj[lane + 7], fac * g_g);
-                        A::add(&mut v_proj[lane + 8], fac * g_b);
-                        A::add(&mut v_proj[lane + 9], fac * g_d);
-                        let (f_r, f_g, f_b, f_d) =
-                            (batch[s + 6], batch[s + 7], batch[s + 8], batch[s + 9]);
-                        let mut v_alpha = g_a * t_final / one_minus;
-                        v_alpha += g_r * (f_r * t_i - behind_r / one_minus);
-                        v_alpha += g_g * (f_g * t_i - behind_g / one_minus);
-                        v_alpha += g_b * (f_b * t_i - behind_b / one_minus);
-                        v_alpha += g_d * (f_d * t_i - behind_d / one_minus);
-                        let opacity = batch[s + 5];
-                        let (q00, q01, q11) = (batch[s + 2], batch[s + 3], batch[s + 4]);
-                        // When the clamp is active alpha no longer depends on opacity or
-                        // geometry.
-                        if opacity * e.vis <= alpha_max {
-                            let v_sigma = (0.0f32 - opacity) * e.vis * v_alpha;
-                            A::add(&mut v_proj[lane], v_sigma * (q00 * e.dx + q01 * e.dy));
-                            A::add(&mut v_proj[lane + 1], v_sigma * (q01 * e.dx + q11 * e.dy));
-                            A::add(&mut v_proj[lane + 2], 0.5f32 * e.dx * e.dx * v_sigma);
-                            A::add(&mut v_proj[lane + 3], e.dx * e.dy * v_sigma);
-                            A::add(&mut v_proj[lane + 4], 0.5f32 * e.dy * e.dy * v_sigma);
-                            A::add(&mut v_proj[lane + 5], e.vis * v_alpha);
-                        }
-                        behind_r += f_r * fac;
-                        behind_g += f_g * fac;
-                        behind_b += f_b * fac;
-                        behind_d += f_d * fac;
-                        t_cur = t_i;
+                        let id = ids[(k - first) as usize] as usize;
+                        let shade = shade_of_batch(&batch, s);
+                        reverse_step::<A>(v_proj, id, e, shade, up, &mut state, alpha_max);
                     }
                 }
             }

@@ -10,7 +10,7 @@ use burn::tensor::{DType, Device, Tensor, TensorData};
 use envision4d_splat::testkit::{
     intrinsics, look_at, random_scene, wgpu_test_device, HostScene, SceneSpec, SplitMix64,
 };
-use envision4d_splat::{render, Cameras, Gaussians, GradAccumulation, RasterConfig};
+use envision4d_splat::{render, Cameras, Gaussians, GradAccumulation, RasterConfig, TileSchedule};
 
 /// Image tolerance (absolute for colour and alpha, relative for the accumulated depth).
 const IMAGE_TOL: f64 = 1e-5;
@@ -141,7 +141,9 @@ fn max_abs(a: &[f64], b: &[f64]) -> f64 {
 }
 
 /// Renders on wgpu and on the CPU and asserts parity; returns the worst gradient error seen
-/// (relative to each tensor's largest entry) for the report.
+/// (relative to each tensor's largest entry) for the report. With `TileSchedule::Auto` the
+/// wgpu render runs under both schedules, so lavapipe (which `Auto` gives the per-pixel
+/// kernels) also checks the shared batches a GPU runs.
 pub(crate) fn check_parity(
     scene: &HostScene,
     views: &[View],
@@ -151,8 +153,26 @@ pub(crate) fn check_parity(
 ) -> Option<f64> {
     let gpu = wgpu_test_device()?;
     let wts = weights(scene, views, w, h, cfg, 99);
-    let a = run(&gpu, scene, views, w, h, cfg, &wts);
     let b = run(&Device::flex(), scene, views, w, h, cfg, &wts);
+    let schedules = match cfg.tile_schedule {
+        TileSchedule::Auto => vec![TileSchedule::SharedBatches, TileSchedule::PerPixel],
+        one => vec![one],
+    };
+    let mut worst = 0.0f64;
+    for tile_schedule in schedules {
+        eprintln!("tile schedule {tile_schedule:?}:");
+        let cfg = RasterConfig {
+            tile_schedule,
+            ..*cfg
+        };
+        let a = run(&gpu, scene, views, w, h, &cfg, &wts);
+        worst = worst.max(compare(&a, &b));
+    }
+    Some(worst)
+}
+
+/// Asserts that the wgpu run `a` matches the CPU run `b`; the worst relative gradient error.
+fn compare(a: &Run, b: &Run) -> f64 {
     let d_rgb = max_abs(&a.rgb, &b.rgb);
     let d_alpha = max_abs(&a.alpha, &b.alpha);
     // The kernel's channel is the accumulated depth D; expected depth D / A amplifies
@@ -164,7 +184,7 @@ pub(crate) fn check_parity(
             .map(|(d, a)| d * a)
             .collect::<Vec<f64>>()
     };
-    let (da, db) = (acc(&a), acc(&b));
+    let (da, db) = (acc(a), acc(b));
     let d_depth = da
         .iter()
         .zip(&db)
@@ -195,7 +215,7 @@ pub(crate) fn check_parity(
             worst = worst.max(rel);
         }
     }
-    Some(worst)
+    worst
 }
 
 pub(crate) fn two_views(w: u32, h: u32) -> Vec<View> {

@@ -1,0 +1,93 @@
+//! Backward of the compositing without shared memory ([`crate::config::TileSchedule::PerPixel`]):
+//! the same two passes per pixel as [`super::rasterize_backward`], each unit reading its
+//! records from global memory and stopping on its own, with no barrier.
+//!
+//! A software adapter (lavapipe) runs a cube on one CPU thread, in SIMD groups that every
+//! barrier suspends and resumes, and its shared memory is ordinary memory: there the batched
+//! kernel takes about twice this one's time (docs/PERFORMANCE.md). The per-splat gradient is
+//! [`reverse_step`], shared with the batched kernel; the skip decisions are
+//! [`eval_splat`]'s, which decide as the batched early reject does.
+
+use super::project_forward::RECORD_LANES;
+use super::rasterize_backward::{reverse_step, shade_of_record, Behind, GradAdd, Upstream};
+use super::rasterize_forward::{eval_splat, OUT_CHANNELS, TILE};
+use cubecl::prelude::*;
+
+#[cube(launch)]
+#[allow(clippy::too_many_arguments)]
+pub fn rasterize_backward_per_pixel<A: GradAdd>(
+    records: &Tensor<f32>,
+    tile_start: &Tensor<u32>,
+    items: &Tensor<u32>,
+    grad_image: &Tensor<f32>,
+    v_proj: &mut Tensor<Atomic<A::Proxy>>,
+    width: u32,
+    height: u32,
+    tiles_x: u32,
+    view_offset: u32,
+    alpha_min: f32,
+    alpha_max: f32,
+    t_min: f32,
+) {
+    let x = CUBE_POS_X * TILE + UNIT_POS_X;
+    let y = CUBE_POS_Y * TILE + UNIT_POS_Y;
+    // Partial edge tiles: units without a pixel have nothing to do and no barrier to meet.
+    if x >= width || y >= height {
+        terminate!();
+    }
+    let o = view_offset as usize + ((y * width + x) as usize) * OUT_CHANNELS;
+    let (g_r, g_g, g_b, g_d, g_a) = (
+        grad_image[o],
+        grad_image[o + 1],
+        grad_image[o + 2],
+        grad_image[o + 3],
+        grad_image[o + 4],
+    );
+    // A pixel with zero upstream gradient contributes nothing (the CPU skips it too).
+    if g_r == 0.0f32 && g_g == 0.0f32 && g_b == 0.0f32 && g_d == 0.0f32 && g_a == 0.0f32 {
+        terminate!();
+    }
+    let tile = (CUBE_POS_Y * tiles_x + CUBE_POS_X) as usize;
+    let start = tile_start[tile];
+    let end = tile_start[tile + 1];
+    let px = f32::cast_from(x) + 0.5f32;
+    let py = f32::cast_from(y) + 0.5f32;
+
+    // Pass 1: replay the forward to get T_final and one past the last composited item.
+    let mut t = 1.0f32;
+    let mut last = start;
+    for k in start..end {
+        let rec = items[k as usize] as usize * RECORD_LANES;
+        let e = eval_splat(records, rec, px, py, alpha_min, alpha_max);
+        if !e.skip {
+            let next_t = t * (1.0f32 - e.alpha);
+            if next_t <= t_min {
+                break;
+            }
+            t = next_t;
+            last = k + 1;
+        }
+    }
+
+    // Pass 2: back to front from `last`; every non-skipped item before it was composited.
+    let up = Upstream {
+        r: g_r,
+        g: g_g,
+        b: g_b,
+        d: g_d,
+        a: g_a,
+        t_final: t,
+    };
+    let mut state = Behind::new(t);
+    let mut k = last;
+    while k > start {
+        k -= 1;
+        let id = items[k as usize] as usize;
+        let rec = id * RECORD_LANES;
+        let e = eval_splat(records, rec, px, py, alpha_min, alpha_max);
+        if !e.skip {
+            let shade = shade_of_record(records, rec);
+            reverse_step::<A>(v_proj, id, e, shade, up, &mut state, alpha_max);
+        }
+    }
+}

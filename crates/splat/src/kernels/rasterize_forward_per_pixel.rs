@@ -1,0 +1,72 @@
+//! Front-to-back compositing without shared memory
+//! ([`crate::config::TileSchedule::PerPixel`]): one cube per tile, one unit per pixel, each
+//! unit reading its tile's records from global memory and stopping on its own, with no
+//! barrier.
+//!
+//! A software adapter (lavapipe) runs a cube on one CPU thread, in SIMD groups that every
+//! barrier suspends and resumes, and its shared memory is ordinary memory: there
+//! [`super::rasterize_forward`]'s batches save nothing and its barriers take about as long
+//! again as this kernel (docs/PERFORMANCE.md). The evaluation is
+//! [`eval_splat`]: no early reject, whose skips are the same ones (the reject only saves an
+//! `exp` whose alpha would fall below `alpha_min`).
+
+use super::project_forward::RECORD_LANES;
+use super::rasterize_forward::{eval_splat, OUT_CHANNELS, TILE};
+use cubecl::prelude::*;
+
+#[cube(launch)]
+#[allow(clippy::too_many_arguments)]
+pub fn rasterize_forward_per_pixel(
+    records: &Tensor<f32>,
+    tile_start: &Tensor<u32>,
+    items: &Tensor<u32>,
+    out: &mut Tensor<f32>,
+    width: u32,
+    height: u32,
+    tiles_x: u32,
+    view_offset: u32,
+    alpha_min: f32,
+    alpha_max: f32,
+    t_min: f32,
+) {
+    let x = CUBE_POS_X * TILE + UNIT_POS_X;
+    let y = CUBE_POS_Y * TILE + UNIT_POS_Y;
+    // Partial edge tiles: units without a pixel have nothing to do and no barrier to meet.
+    if x >= width || y >= height {
+        terminate!();
+    }
+    let tile = (CUBE_POS_Y * tiles_x + CUBE_POS_X) as usize;
+    let start = tile_start[tile];
+    let end = tile_start[tile + 1];
+    let px = f32::cast_from(x) + 0.5f32;
+    let py = f32::cast_from(y) + 0.5f32;
+
+    let mut t = 1.0f32;
+    let mut acc_r = 0.0f32;
+    let mut acc_g = 0.0f32;
+    let mut acc_b = 0.0f32;
+    let mut acc_d = 0.0f32;
+    for k in start..end {
+        let rec = items[k as usize] as usize * RECORD_LANES;
+        let e = eval_splat(records, rec, px, py, alpha_min, alpha_max);
+        if !e.skip {
+            let next_t = t * (1.0f32 - e.alpha);
+            // Exclusive stop, as in the batched kernel.
+            if next_t <= t_min {
+                break;
+            }
+            let fac = e.alpha * t;
+            acc_r += records[rec + 6] * fac;
+            acc_g += records[rec + 7] * fac;
+            acc_b += records[rec + 8] * fac;
+            acc_d += records[rec + 9] * fac;
+            t = next_t;
+        }
+    }
+    let o = view_offset as usize + ((y * width + x) as usize) * OUT_CHANNELS;
+    out[o] = acc_r;
+    out[o + 1] = acc_g;
+    out[o + 2] = acc_b;
+    out[o + 3] = acc_d;
+    out[o + 4] = 1.0f32 - t;
+}
