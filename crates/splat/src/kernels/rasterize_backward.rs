@@ -8,6 +8,9 @@
 //! Both passes read the records in shared-memory batches as the forward kernel does; the
 //! reverse pass starts at the furthest end any pixel of the tile reached. Units without a
 //! pixel or without an upstream gradient take part in the loads and add nothing.
+//! [`super::rasterize_backward_per_pixel`] is the same without shared memory, for a software
+//! adapter ([`crate::config::TileSchedule`]); both add a splat's gradient with
+//! [`reverse_step`].
 //! Lane order: mean2d (x, y), conic (q00, q01, q11), opacity, colour (r, g, b), depth.
 
 use super::project_forward::RECORD_LANES;

@@ -7,6 +7,8 @@
 //! once per tile instead of once per pixel. A unit whose pixel has reached the transmittance
 //! stop counts itself done; when all are, the tile stops (per-tile early exit). Units
 //! outside the image (partial edge tiles) load their share and write nothing.
+//! [`super::rasterize_forward_per_pixel`] is the same without shared memory, for a software
+//! adapter ([`crate::config::TileSchedule`]).
 
 use super::project_forward::RECORD_LANES;
 use cubecl::prelude::*;
