@@ -10,12 +10,12 @@
 //! pixel or without an upstream gradient take part in the loads and add nothing.
 //! [`super::rasterize_backward_per_pixel`] is the same without shared memory, for a software
 //! adapter ([`crate::config::TileSchedule`]); both add a splat's gradient with
-//! [`reverse_step`].
+//! [`reverse_step()`].
 //! Lane order: mean2d (x, y), conic (q00, q01, q11), opacity, colour (r, g, b), depth.
 
 use super::project_forward::RECORD_LANES;
 use super::rasterize_forward::{
-    eval_batched, load_batch, Eval, BATCH, BATCH_SHARED, OUT_CHANNELS, SHARED_LANES, TILE,
+    eval_batched, load_batch, tile_pixel, Eval, BATCH, BATCH_SHARED, SHARED_LANES, TILE,
 };
 use cubecl::prelude::*;
 
@@ -207,17 +207,16 @@ pub fn rasterize_backward<A: GradAdd>(
     alpha_max: f32,
     t_min: f32,
 ) {
-    let x = CUBE_POS_X * TILE + UNIT_POS_X;
-    let y = CUBE_POS_Y * TILE + UNIT_POS_Y;
+    let pix = tile_pixel(tile_start, width, height, tiles_x, view_offset);
     let unit = (UNIT_POS_Y * TILE + UNIT_POS_X) as usize;
-    let inside = x < width && y < height;
+    let inside = pix.inside;
     let mut g_r = 0.0f32;
     let mut g_g = 0.0f32;
     let mut g_b = 0.0f32;
     let mut g_d = 0.0f32;
     let mut g_a = 0.0f32;
     if inside {
-        let o = view_offset as usize + ((y * width + x) as usize) * OUT_CHANNELS;
+        let o = pix.out;
         g_r = grad_image[o];
         g_g = grad_image[o + 1];
         g_b = grad_image[o + 2];
@@ -227,11 +226,7 @@ pub fn rasterize_backward<A: GradAdd>(
     // A pixel with zero upstream gradient contributes nothing (the CPU skips it too).
     let active = inside
         && !(g_r == 0.0f32 && g_g == 0.0f32 && g_b == 0.0f32 && g_d == 0.0f32 && g_a == 0.0f32);
-    let tile = (CUBE_POS_Y * tiles_x + CUBE_POS_X) as usize;
-    let start = tile_start[tile];
-    let end = tile_start[tile + 1];
-    let px = f32::cast_from(x) + 0.5f32;
-    let py = f32::cast_from(y) + 0.5f32;
+    let (start, end, px, py) = (pix.start, pix.end, pix.px, pix.py);
 
     let mut batch = Shared::<[f32]>::new_slice(BATCH_SHARED);
     let mut ids = Shared::<[u32]>::new_slice(BATCH as usize);

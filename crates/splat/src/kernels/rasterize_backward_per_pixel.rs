@@ -5,12 +5,12 @@
 //! A software adapter (lavapipe) runs a cube on one CPU thread, in SIMD groups that every
 //! barrier suspends and resumes, and its shared memory is ordinary memory: there the batched
 //! kernel takes about twice this one's time (docs/PERFORMANCE.md). The per-splat gradient is
-//! [`reverse_step`], shared with the batched kernel; the skip decisions are
-//! [`eval_splat`]'s, which decide as the batched early reject does.
+//! [`reverse_step()`], shared with the batched kernel; the skip decisions are
+//! [`eval_splat()`]'s, which decide as the batched early reject does.
 
 use super::project_forward::RECORD_LANES;
 use super::rasterize_backward::{reverse_step, shade_of_record, Behind, GradAdd, Upstream};
-use super::rasterize_forward::{eval_splat, OUT_CHANNELS, TILE};
+use super::rasterize_forward::{eval_splat, tile_pixel};
 use cubecl::prelude::*;
 
 #[cube(launch)]
@@ -29,13 +29,12 @@ pub fn rasterize_backward_per_pixel<A: GradAdd>(
     alpha_max: f32,
     t_min: f32,
 ) {
-    let x = CUBE_POS_X * TILE + UNIT_POS_X;
-    let y = CUBE_POS_Y * TILE + UNIT_POS_Y;
+    let pix = tile_pixel(tile_start, width, height, tiles_x, view_offset);
     // Partial edge tiles: units without a pixel have nothing to do and no barrier to meet.
-    if x >= width || y >= height {
+    if !pix.inside {
         terminate!();
     }
-    let o = view_offset as usize + ((y * width + x) as usize) * OUT_CHANNELS;
+    let o = pix.out;
     let (g_r, g_g, g_b, g_d, g_a) = (
         grad_image[o],
         grad_image[o + 1],
@@ -47,11 +46,7 @@ pub fn rasterize_backward_per_pixel<A: GradAdd>(
     if g_r == 0.0f32 && g_g == 0.0f32 && g_b == 0.0f32 && g_d == 0.0f32 && g_a == 0.0f32 {
         terminate!();
     }
-    let tile = (CUBE_POS_Y * tiles_x + CUBE_POS_X) as usize;
-    let start = tile_start[tile];
-    let end = tile_start[tile + 1];
-    let px = f32::cast_from(x) + 0.5f32;
-    let py = f32::cast_from(y) + 0.5f32;
+    let (start, end, px, py) = (pix.start, pix.end, pix.px, pix.py);
 
     // Pass 1: replay the forward to get T_final and one past the last composited item.
     let mut t = 1.0f32;

@@ -151,6 +151,43 @@ pub fn eval_batched(
     )
 }
 
+/// Where a unit of a tile cube draws: its pixel, the pixel centre, the pixel's first output
+/// lane in the image batch, and the tile's item range `[start, end)` in the CSR lists.
+/// `inside` is false for the units of a partial edge tile past the image (their `out` is
+/// meaningless and must not be used).
+#[derive(CubeType, Clone, Copy)]
+#[expand(derive(Clone, Copy))]
+pub struct TilePixel {
+    pub inside: bool,
+    pub px: f32,
+    pub py: f32,
+    pub out: usize,
+    pub start: u32,
+    pub end: u32,
+}
+
+/// The [`TilePixel`] of this unit, for the cube of tile `(CUBE_POS_X, CUBE_POS_Y)`.
+#[cube]
+pub fn tile_pixel(
+    tile_start: &Tensor<u32>,
+    width: u32,
+    height: u32,
+    tiles_x: u32,
+    view_offset: u32,
+) -> TilePixel {
+    let x = CUBE_POS_X * TILE + UNIT_POS_X;
+    let y = CUBE_POS_Y * TILE + UNIT_POS_Y;
+    let tile = (CUBE_POS_Y * tiles_x + CUBE_POS_X) as usize;
+    TilePixel {
+        inside: x < width && y < height,
+        px: f32::cast_from(x) + 0.5f32,
+        py: f32::cast_from(y) + 0.5f32,
+        out: view_offset as usize + ((y * width + x) as usize) * OUT_CHANNELS,
+        start: tile_start[tile],
+        end: tile_start[tile + 1],
+    }
+}
+
 #[cube(launch)]
 #[allow(clippy::too_many_arguments)]
 pub fn rasterize_forward(
@@ -166,15 +203,9 @@ pub fn rasterize_forward(
     alpha_max: f32,
     t_min: f32,
 ) {
-    let x = CUBE_POS_X * TILE + UNIT_POS_X;
-    let y = CUBE_POS_Y * TILE + UNIT_POS_Y;
+    let pix = tile_pixel(tile_start, width, height, tiles_x, view_offset);
     let unit = (UNIT_POS_Y * TILE + UNIT_POS_X) as usize;
-    let inside = x < width && y < height;
-    let tile = (CUBE_POS_Y * tiles_x + CUBE_POS_X) as usize;
-    let start = tile_start[tile];
-    let end = tile_start[tile + 1];
-    let px = f32::cast_from(x) + 0.5f32;
-    let py = f32::cast_from(y) + 0.5f32;
+    let (inside, start, end, px, py) = (pix.inside, pix.start, pix.end, pix.px, pix.py);
 
     let mut batch = Shared::<[f32]>::new_slice(BATCH_SHARED);
     // The indices are the backward's (it adds into per-Gaussian lanes); loaded here too so
@@ -241,7 +272,7 @@ pub fn rasterize_forward(
         }
     }
     if inside {
-        let o = view_offset as usize + ((y * width + x) as usize) * OUT_CHANNELS;
+        let o = pix.out;
         out[o] = acc_r;
         out[o + 1] = acc_g;
         out[o + 2] = acc_b;

@@ -7,11 +7,11 @@
 //! barrier suspends and resumes, and its shared memory is ordinary memory: there
 //! [`super::rasterize_forward`]'s batches save nothing and its barriers take about as long
 //! again as this kernel (docs/PERFORMANCE.md). The evaluation is
-//! [`eval_splat`]: no early reject, whose skips are the same ones (the reject only saves an
+//! [`eval_splat()`]: no early reject, whose skips are the same ones (the reject only saves an
 //! `exp` whose alpha would fall below `alpha_min`).
 
 use super::project_forward::RECORD_LANES;
-use super::rasterize_forward::{eval_splat, OUT_CHANNELS, TILE};
+use super::rasterize_forward::{eval_splat, tile_pixel};
 use cubecl::prelude::*;
 
 #[cube(launch)]
@@ -29,24 +29,19 @@ pub fn rasterize_forward_per_pixel(
     alpha_max: f32,
     t_min: f32,
 ) {
-    let x = CUBE_POS_X * TILE + UNIT_POS_X;
-    let y = CUBE_POS_Y * TILE + UNIT_POS_Y;
+    let pix = tile_pixel(tile_start, width, height, tiles_x, view_offset);
     // Partial edge tiles: units without a pixel have nothing to do and no barrier to meet.
-    if x >= width || y >= height {
+    if !pix.inside {
         terminate!();
     }
-    let tile = (CUBE_POS_Y * tiles_x + CUBE_POS_X) as usize;
-    let start = tile_start[tile];
-    let end = tile_start[tile + 1];
-    let px = f32::cast_from(x) + 0.5f32;
-    let py = f32::cast_from(y) + 0.5f32;
+    let (px, py) = (pix.px, pix.py);
 
     let mut t = 1.0f32;
     let mut acc_r = 0.0f32;
     let mut acc_g = 0.0f32;
     let mut acc_b = 0.0f32;
     let mut acc_d = 0.0f32;
-    for k in start..end {
+    for k in pix.start..pix.end {
         let rec = items[k as usize] as usize * RECORD_LANES;
         let e = eval_splat(records, rec, px, py, alpha_min, alpha_max);
         if !e.skip {
@@ -63,7 +58,7 @@ pub fn rasterize_forward_per_pixel(
             t = next_t;
         }
     }
-    let o = view_offset as usize + ((y * width + x) as usize) * OUT_CHANNELS;
+    let o = pix.out;
     out[o] = acc_r;
     out[o + 1] = acc_g;
     out[o + 2] = acc_b;
