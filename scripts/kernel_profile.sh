@@ -10,7 +10,9 @@
 # log: each kernel's source at its first compilation, then one line per launch) and
 # OUT/kernels.md. The first launch of each kernel includes its compilation, and every launch
 # is followed by a wait, so the sums exceed the bench's own (unprofiled) times: compare
-# kernels with each other, not with the bench table.
+# kernels with each other, not with the bench table. CubeCL's logger writes from a queue of
+# its own, and what is still queued when the bench exits is lost (at 10 000 Gaussians most of
+# the short launches): read the means, not the launch counts.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 OUT=${OUT:-runs/kernel-profile}
