@@ -1,14 +1,18 @@
 //! The device pipeline's limits and shapes on wgpu (lavapipe here), against the CPU path
 //! where there is one: a buffer past the binding limit, depth ties across many tiles, an
-//! opaque stack that stops early, and the render's host readbacks counted.
+//! opaque stack that stops early, the render's host readbacks counted, and the compositing
+//! kernels each tile schedule launches.
 
 use crate::common::View;
 use crate::wgpu_parity::{check_parity, run, t, two_views, weights};
+use cubecl::logging::{LaunchObservation, LaunchObserver};
 use envision4d_splat::testkit::{
     intrinsics, look_at, random_scene, wgpu_test_device, HostScene, SceneSpec,
 };
-use envision4d_splat::{render, Cameras, Gaussians, RasterConfig};
+use envision4d_splat::{render, Cameras, Gaussians, RasterConfig, TileSchedule};
+use std::collections::BTreeSet;
 use std::panic::{catch_unwind, AssertUnwindSafe};
+use std::sync::{Arc, Mutex};
 
 /// Guards the storage-binding limit: a render whose output cannot be bound on the device
 /// (16384² x 5 floats = 5.4 GB, past any WebGPU per-binding limit) must stop with a message
@@ -134,4 +138,58 @@ fn wgpu_render_reads_back_only_cameras_and_counts() {
     // The 2 camera tensors once (validation hands them to the kernels), then per pass
     // (forward, backward) 1 read of all views' totals.
     assert_eq!(reads, 2 + 2, "host readbacks of one forward+backward");
+}
+
+/// The compositing kernels launched on this thread while it was installed, by type name.
+#[derive(Default)]
+struct Composited {
+    thread: Option<std::thread::ThreadId>,
+    kernels: Mutex<BTreeSet<String>>,
+}
+
+impl LaunchObserver for Composited {
+    fn launched(&self, kernel: &'static str) {
+        // Other tests launch on their own threads at the same time; only ours count.
+        if Some(std::thread::current().id()) == self.thread && kernel.contains("Rasterize") {
+            // `path::RasterizeBackward<path::NativeAdd>`: the last segment before the generics.
+            let path = kernel.split('<').next().unwrap_or(kernel);
+            let name = path.rsplit("::").next().unwrap_or(path);
+            self.kernels.lock().unwrap().insert(name.to_owned());
+        }
+    }
+}
+
+/// Guards the tile schedule's plumbing: `Auto` on lavapipe (a device that is no card) must
+/// run the per-pixel compositing kernels, about twice as fast there, and `SharedBatches` the
+/// batched ones a GPU runs, in the forward and the backward alike.
+#[test]
+fn wgpu_tile_schedule_picks_the_compositing_kernels() {
+    let Some(gpu) = wgpu_test_device() else {
+        return;
+    };
+    let (w, h) = (40, 30);
+    let scene = random_scene(150, 8, SceneSpec::default());
+    let views = &two_views(w, h)[..1];
+    let wts = weights(&scene, views, w, h, &RasterConfig::default(), 4);
+    let per_pixel = ["RasterizeBackwardPerPixel", "RasterizeForwardPerPixel"];
+    let batched = ["RasterizeBackward", "RasterizeForward"];
+    for (schedule, want) in [
+        (TileSchedule::Auto, per_pixel),
+        (TileSchedule::PerPixel, per_pixel),
+        (TileSchedule::SharedBatches, batched),
+    ] {
+        let seen = Arc::new(Composited {
+            thread: Some(std::thread::current().id()),
+            ..Default::default()
+        });
+        let watching = LaunchObservation::new(seen.clone());
+        let cfg = RasterConfig {
+            tile_schedule: schedule,
+            ..RasterConfig::default()
+        };
+        run(&gpu, &scene, views, w, h, &cfg, &wts);
+        drop(watching);
+        let kernels: Vec<String> = seen.kernels.lock().unwrap().iter().cloned().collect();
+        assert_eq!(kernels, want, "{schedule:?} launched {kernels:?}");
+    }
 }
