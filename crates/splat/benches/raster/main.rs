@@ -5,10 +5,14 @@
 //! `... -- --backends wgpu,cuda --sizes 362600,1000000,3000000 --json FILE` (what
 //! `scripts/gpu_bench.sh` runs; `cuda` needs `--features envision4d-splat/cuda`).
 //! `--schedules auto,shared,per-pixel` times each tile schedule of the compositing kernels
-//! (`TileSchedule`; default `auto`); `--no-sort` skips the sort and scan table.
+//! (`TileSchedule`; default `auto`); `--no-sort` skips the sort and scan table; `--kernels`
+//! adds, per row, the device time of each kernel of one forward+backward
+//! ([`kernel_times`]).
 //! Prints ms per view and Gaussian-tile pairs per second, then the binning's building blocks
 //! alone (the stable sort of 32-bit keys and the exclusive scan, results read back); results
 //! go to docs/PERFORMANCE.md. Scenes past 362,600 Gaussians take more frames of the street.
+
+mod kernel_times;
 
 use burn::tensor::{DType, Int, Tensor, TensorData};
 use burn::tensor::{Device, DeviceKind};
@@ -168,6 +172,8 @@ fn main() {
         .collect();
     let mut json_rows = Vec::new();
     let sort_devices = devices.clone();
+    let kernels = args.iter().any(|a| a == "--kernels");
+    let mut kernel_tables = Vec::new();
     println!(
         "machine: {} logical cores; image {W}x{H}; min of {reps} runs after 1 warm-up",
         std::thread::available_parallelism()
@@ -216,11 +222,26 @@ fn main() {
             });
             let ad = device.clone().autodiff();
             let (ga, ca) = tensors(&scene, &ad, true);
-            let fb = time(reps, device, || {
+            let fwd_bwd = || {
                 let out = render(&ga, &ca, &cfg).unwrap();
                 let grads = (out.rgb.sum() + out.depth.sum() * 0.01).backward();
                 read(ga.means.grad(&grads).unwrap().into_data())
-            });
+            };
+            let fb = time(reps, device, fwd_bwd);
+            if kernels {
+                // After the timed runs: compiled, autotuned and allocated already.
+                let (rows, method) = kernel_times::per_kernel(device, || {
+                    fwd_bwd();
+                });
+                for k in &rows {
+                    json_rows.push(format!(
+                        "{{\"kind\":\"kernel\",\"backend\":\"{backend}\",\"schedule\":{sched_json},\
+                         \"gaussians\":{n},\"kernel\":\"{}\",\"launches\":{},\"total_ms\":{:.4}}}",
+                        k.name, k.launches, k.total_ms
+                    ));
+                }
+                kernel_tables.push((format!("{name}, {n} Gaussians"), rows, method));
+            }
             json_rows.push(format!(
                 "{{\"kind\":\"raster\",\"backend\":\"{backend}\",\"schedule\":{sched_json},\
                  \"gaussians\":{n},\"visible\":{},\"tile_pairs\":{},\"forward_ms\":{:.3},\"fwd_bwd_ms\":{:.3}}}",
@@ -237,6 +258,24 @@ fn main() {
                 fb.as_secs_f64() * 1e3,
                 pairs / fwd.as_secs_f64(),
                 pairs / fb.as_secs_f64()
+            );
+        }
+    }
+    for (title, rows, method) in &kernel_tables {
+        let method = method.as_deref().unwrap_or("nothing launched");
+        println!();
+        println!("Kernels of one forward+backward, {title} ({method}):");
+        println!();
+        println!("| kernel | launches | total ms | share |");
+        println!("|---|---|---|---|");
+        let all: f64 = rows.iter().map(|k| k.total_ms).sum();
+        for k in rows {
+            println!(
+                "| {} | {} | {:.3} | {:.1}% |",
+                k.name,
+                k.launches,
+                k.total_ms,
+                100.0 * k.total_ms / all.max(f64::MIN_POSITIVE)
             );
         }
     }
