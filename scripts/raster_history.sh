@@ -39,7 +39,10 @@ for commit in "$@"; do
   id=$(git rev-parse --short "$commit")
   wt=$scratch/wt-$id
   git worktree add -q --detach "$wt" "$id"
-  python3 - "$wt/crates/splat/benches/raster.rs" <<'PY'
+  # The bench is benches/raster/main.rs from d38583f on, benches/raster.rs before.
+  bench_src=$wt/crates/splat/benches/raster.rs
+  [ -f "$bench_src" ] || bench_src=$wt/crates/splat/benches/raster/main.rs
+  python3 - "$bench_src" <<'PY'
 import re, sys
 path = sys.argv[1]
 src = open(path).read()
