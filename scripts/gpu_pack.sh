@@ -38,7 +38,8 @@ features=envision4d-splat/$cuda,envision4d-model/$cuda,envision4d-train/$cuda,en
 cargo bench --workspace --no-run --bench raster --bench forward --bench train_step \
   --features "$features" 2>&1 | tee "$stage/build.log" | grep -E '^(error|warning: unused)' || true
 for name in raster forward train_step; do
-  bin=$(sed -n "s/.*Executable benches\/$name\.rs (\(.*\))$/\1/p" "$stage/build.log" | tail -1)
+  # benches/NAME.rs, or benches/NAME/main.rs for a bench with modules (the raster one).
+  bin=$(sed -n "s/.*Executable benches\/$name\(\.rs\|\/main\.rs\) (\(.*\))$/\2/p" "$stage/build.log" | tail -1)
   [ -x "$bin" ] || { echo "gpu_pack: the $name bench did not build (log: cargo above)" >&2; exit 1; }
   mkdir -p "$stage/benches"
   cp "$bin" "$stage/benches/$name"
