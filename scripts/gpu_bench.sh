@@ -14,8 +14,6 @@
 #   BACKENDS=cuda CUDA=1 scripts/gpu_bench.sh     # one backend only
 #   COMPARE_AT=100000 scripts/gpu_bench.sh        # the tile schedules compared at this size
 #                                                 # (default 362600; empty: not compared)
-#   PROFILE_AT=100000 scripts/gpu_bench.sh        # device time per kernel at this size
-#                                                 # (default 362600; empty: none)
 #
 # Each backend runs whole (rasterizer, then model) before the next, CUDA first, and the
 # table is rewritten after every section: a run stopped by a timeout keeps what it measured.
@@ -50,9 +48,6 @@ BACKENDS=${BACKENDS:-$DEFAULT_BACKENDS}
 # One scene rendered with both tile schedules of the compositing kernels (`TileSchedule`):
 # the evidence for what `auto` picks on each device.
 COMPARE_AT=${COMPARE_AT-362600}
-# One forward+backward timed per kernel (the raster bench's `--kernels`): whether the sorts,
-# the binning or the compositing dominate on this device, which decides what to speed up next.
-PROFILE_AT=${PROFILE_AT-362600}
 mkdir -p "$OUT"
 export XDG_RUNTIME_DIR="${XDG_RUNTIME_DIR:-$(mktemp -d)}"
 # A bench binary: the given path, or built here (its path ends cargo's "Executable" line).
@@ -121,7 +116,10 @@ row() {
 for b in ${BACKENDS//,/ }; do
   echo "== raster and sort on $b, sizes $SIZES ($(date -u +%FT%TZ))"
   echo -e "\n### $b\n" >> "$OUT/raster.md.tmp"
-  "$BIN" --backends "$b" --sizes "$SIZES" --json "$OUT/raster-$b.json" | tee -a "$OUT/raster.md.tmp" \
+  # --kernels: every size also gets the device time of each kernel of one forward+backward
+  # (whether the sorts, the binning or the compositing dominate here), in the same process.
+  "$BIN" --backends "$b" --sizes "$SIZES" --kernels --json "$OUT/raster-$b.json" \
+    | tee -a "$OUT/raster.md.tmp" \
     || echo "raster bench on $b failed (exit ${PIPESTATUS[0]}; its messages are in the run's log)" | tee -a "$OUT/raster.md.tmp"
   write_table
   if [ -n "$COMPARE_AT" ]; then
@@ -130,14 +128,6 @@ for b in ${BACKENDS//,/ }; do
     "$BIN" --backends "$b" --sizes "$COMPARE_AT" --schedules shared,per-pixel --no-sort \
       --json "$OUT/schedules-$b.json" | tee -a "$OUT/raster.md.tmp" \
       || echo "schedule comparison on $b failed (exit ${PIPESTATUS[0]})" | tee -a "$OUT/raster.md.tmp"
-    write_table
-  fi
-  if [ -n "$PROFILE_AT" ]; then
-    echo "== time per kernel on $b at $PROFILE_AT Gaussians"
-    echo -e "\nTime per kernel:\n" >> "$OUT/raster.md.tmp"
-    "$BIN" --backends "$b" --sizes "$PROFILE_AT" --quick --no-sort --kernels \
-      --json "$OUT/kernels-$b.json" | tee -a "$OUT/raster.md.tmp" \
-      || echo "kernel times on $b failed (exit ${PIPESTATUS[0]})" | tee -a "$OUT/raster.md.tmp"
     write_table
   fi
   [ -z "${SKIP_MODEL:-}" ] || continue
