@@ -71,6 +71,21 @@ pub enum TileSchedule {
     PerPixel,
 }
 
+/// What a GPU forward that will be differentiated keeps for its backward (results agree to
+/// rounding; the choice is memory against time).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum BackwardBins {
+    /// Every view's projected records and tile lists stay on the device until the backward,
+    /// which then skips the projection, both sorts and its host read of the intersection
+    /// totals (gsplat keeps them too). Costs 64 bytes per Gaussian and view plus 4 per
+    /// tile intersection, held from the forward to the backward.
+    #[default]
+    Keep,
+    /// Only the inputs are held; the backward projects and bins every view again.
+    Recompute,
+}
+
 /// The rasterizer's numeric settings. `RasterConfig::default()` is gsplat 1.5.3.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -97,6 +112,10 @@ pub struct RasterConfig {
     /// Tile walk of the GPU compositing kernels (results agree; not part of a report).
     #[serde(skip)]
     pub tile_schedule: TileSchedule,
+    /// What a differentiated GPU forward keeps for its backward (results agree; not part of a
+    /// report).
+    #[serde(skip)]
+    pub backward_bins: BackwardBins,
 }
 
 impl Default for RasterConfig {
@@ -112,6 +131,7 @@ impl Default for RasterConfig {
             background: None,
             grad_accumulation: GradAccumulation::Auto,
             tile_schedule: TileSchedule::Auto,
+            backward_bins: BackwardBins::Keep,
         }
     }
 }

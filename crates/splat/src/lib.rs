@@ -24,7 +24,9 @@ pub mod primitives;
 pub mod real;
 
 pub use camera::{Camera, CameraError};
-pub use config::{AlphaClamp, GradAccumulation, RasterConfig, TileSchedule, TILE_SIZE};
+pub use config::{
+    AlphaClamp, BackwardBins, GradAccumulation, RasterConfig, TileSchedule, TILE_SIZE,
+};
 pub mod backend;
 pub mod render;
 

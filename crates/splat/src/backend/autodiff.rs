@@ -1,12 +1,14 @@
 //! The custom autodiff node: one Backward step with seven parents (the five Gaussian
 //! parameter tensors and the two camera tensors).
 //!
-//! The state keeps the inner-backend input primitives; the backward recomputes projection and
-//! tile lists (cheap next to compositing) instead of holding per-pixel buffers alive between
-//! the forward and backward passes.
+//! The state keeps the inner-backend input primitives and, with
+//! [`BackwardBins::Keep`](crate::BackwardBins) on a backend that keeps them, every view's
+//! projected records and tile lists, so the backward neither sorts nor reads the host again;
+//! with `Recompute` it projects and bins again, holding less between the passes. A forward
+//! nothing will differentiate keeps nothing.
 
-use super::{SplatGrads, SplatOps};
-use crate::config::RasterConfig;
+use super::{SplatGrads, SplatKeep, SplatOps};
+use crate::config::{BackwardBins, RasterConfig};
 use crate::views::{HostCameras, ViewSets};
 use burn::backend::autodiff::checkpoint::{base::Checkpointer, strategy::CheckpointStrategy};
 use burn::backend::autodiff::grads::Gradients;
@@ -19,16 +21,18 @@ use burn::backend::AutodiffBackend;
 struct RenderBackward;
 
 #[derive(Debug, Clone)]
-struct RenderState<B: SplatOps> {
+struct RenderState<B: SplatKeep> {
     inputs: [FloatTensor<B>; 7],
     width: u32,
     height: u32,
     sets: ViewSets,
     host_cameras: HostCameras,
     config: RasterConfig,
+    /// What the inner forward kept for the backward (`None`: recompute).
+    kept: Option<B::Kept>,
 }
 
-impl<B: SplatOps> Backward<B, 7> for RenderBackward {
+impl<B: SplatKeep> Backward<B, 7> for RenderBackward {
     type State = RenderState<B>;
 
     fn backward(
@@ -45,23 +49,38 @@ impl<B: SplatOps> Backward<B, 7> for RenderBackward {
             sets,
             host_cameras,
             config,
+            kept,
         } = ops.state;
-        let [m, q, s, o, c, v, k] = inputs;
-        let g = B::splat_backward(
-            m,
-            q,
-            s,
-            o,
-            c,
-            v,
-            k,
-            grad_image,
-            width,
-            height,
-            sets,
-            host_cameras,
-            config,
-        );
+        let g = match kept {
+            Some(kept) => B::splat_backward_kept(
+                inputs,
+                grad_image,
+                kept,
+                width,
+                height,
+                sets,
+                host_cameras,
+                config,
+            ),
+            None => {
+                let [m, q, s, o, c, v, k] = inputs;
+                B::splat_backward(
+                    m,
+                    q,
+                    s,
+                    o,
+                    c,
+                    v,
+                    k,
+                    grad_image,
+                    width,
+                    height,
+                    sets,
+                    host_cameras,
+                    config,
+                )
+            }
+        };
         for (parent, grad) in ops.parents.into_iter().zip([
             g.means,
             g.quats,
@@ -78,7 +97,7 @@ impl<B: SplatOps> Backward<B, 7> for RenderBackward {
     }
 }
 
-impl<B: SplatOps, C: CheckpointStrategy> SplatOps for Autodiff<B, C> {
+impl<B: SplatKeep, C: CheckpointStrategy> SplatOps for Autodiff<B, C> {
     fn splat_forward(
         means: FloatTensor<Self>,
         quats: FloatTensor<Self>,
@@ -97,39 +116,68 @@ impl<B: SplatOps, C: CheckpointStrategy> SplatOps for Autodiff<B, C> {
         let nodes = tensors.each_ref().map(|t| t.node());
         let inner = tensors.map(|t| t.into_primitive());
         let [m, q, s, o, c, v, k] = inner.clone();
-        let (image, radii, counts) = B::splat_forward(
-            m,
-            q,
-            s,
-            o,
-            c,
-            v,
-            k,
-            width,
-            height,
-            sets.clone(),
-            host_cameras.clone(),
-            config,
-        );
-        let image = match RenderBackward
+        match RenderBackward
             .prepare::<C>(nodes)
             .compute_bound()
             .stateful()
         {
-            OpsKind::Tracked(prep) => prep.finish(
-                RenderState {
+            OpsKind::Tracked(prep) => {
+                let ((image, radii, counts), kept) = match config.backward_bins {
+                    BackwardBins::Keep => B::splat_forward_kept(
+                        inner.clone(),
+                        width,
+                        height,
+                        sets.clone(),
+                        host_cameras.clone(),
+                        config,
+                    ),
+                    BackwardBins::Recompute => {
+                        let out = B::splat_forward(
+                            m,
+                            q,
+                            s,
+                            o,
+                            c,
+                            v,
+                            k,
+                            width,
+                            height,
+                            sets.clone(),
+                            host_cameras.clone(),
+                            config,
+                        );
+                        (out, None)
+                    }
+                };
+                let state = RenderState {
                     inputs: inner,
                     width,
                     height,
                     sets,
                     host_cameras,
                     config,
-                },
-                image,
-            ),
-            OpsKind::UnTracked(prep) => prep.finish(image),
-        };
-        (image, radii, counts)
+                    kept,
+                };
+                (prep.finish(state, image), radii, counts)
+            }
+            OpsKind::UnTracked(prep) => {
+                let (image, radii, counts) = B::splat_forward(
+                    m,
+                    q,
+                    s,
+                    o,
+                    c,
+                    v,
+                    k,
+                    width,
+                    height,
+                    sets,
+                    host_cameras,
+                    config,
+                );
+                (prep.finish(image), radii, counts)
+            }
+        }
     }
 
     /// Gradients are computed, not differentiated again: the results are constants.

@@ -2,8 +2,9 @@
 //! kernels of [`crate::kernels`]; other float types (f64 oracle runs, half precision) take the
 //! host path, which is exact but slow.
 
-use super::{host, host_sort, SplatGrads, SplatOps};
+use super::{host, host_sort, Forward, SplatGrads, SplatKeep, SplatOps};
 use crate::config::RasterConfig;
+use crate::kernels::kept::ViewRender;
 use crate::kernels::launch::{self, Inputs};
 use crate::kernels::launch_backward;
 use crate::kernels::readback::read_u32s;
@@ -35,10 +36,12 @@ impl SplatOps for CubeBackend {
         if inputs.iter().any(|t| t.dtype() != DType::F32) {
             return host::forward::<Self>(inputs, width, height, &sets, &config);
         }
-        launch::forward(
+        let (image, radii, counts, _) = launch::forward(
             &Inputs::new(inputs, &host_cameras, width, height, &sets),
             &config,
-        )
+            false,
+        );
+        (image, radii, counts)
     }
 
     fn splat_backward(
@@ -66,6 +69,7 @@ impl SplatOps for CubeBackend {
             grad_image,
             shapes,
             &config,
+            None,
         )
     }
 
@@ -114,4 +118,54 @@ fn is_32bit(t: &IntTensor<CubeBackend>) -> bool {
 /// A contiguous u32 view of a 32-bit integer tensor.
 fn words(t: IntTensor<CubeBackend>) -> CubeTensor {
     sort::retype(into_contiguous(t), DType::U32)
+}
+
+impl SplatKeep for CubeBackend {
+    /// Every view as the compositing read it (`None`: no tile intersection).
+    type Kept = Vec<Option<ViewRender>>;
+
+    fn splat_forward_kept(
+        inputs: [FloatTensor<Self>; 7],
+        width: u32,
+        height: u32,
+        sets: ViewSets,
+        host_cameras: HostCameras,
+        config: RasterConfig,
+    ) -> (Forward<Self>, Option<Self::Kept>) {
+        if inputs.iter().any(|t| t.dtype() != DType::F32) {
+            return (
+                host::forward::<Self>(inputs, width, height, &sets, &config),
+                None,
+            );
+        }
+        let (image, radii, counts, kept) = launch::forward(
+            &Inputs::new(inputs, &host_cameras, width, height, &sets),
+            &config,
+            true,
+        );
+        ((image, radii, counts), Some(kept))
+    }
+
+    fn splat_backward_kept(
+        inputs: [FloatTensor<Self>; 7],
+        grad_image: FloatTensor<Self>,
+        kept: Self::Kept,
+        width: u32,
+        height: u32,
+        sets: ViewSets,
+        host_cameras: HostCameras,
+        config: RasterConfig,
+    ) -> SplatGrads<Self> {
+        let shapes = inputs.each_ref().map(|t| t.shape());
+        if grad_image.dtype() != DType::F32 {
+            return host::backward::<Self>(inputs, grad_image, width, height, &sets, &config);
+        }
+        launch_backward::backward(
+            &Inputs::new(inputs, &host_cameras, width, height, &sets),
+            grad_image,
+            shapes,
+            &config,
+            Some(kept),
+        )
+    }
 }

@@ -5,12 +5,16 @@
 //! inputs (Gaussians and cameras). The default bodies run the plain-Rust CPU rasterizer on
 //! host copies of the tensors: this is the implementation for burn-flex (the CPU backend).
 //! CubeCL backends override both with GPU kernels (see `cube`). The autodiff node
-//! (`autodiff`) stores the inputs and calls `splat_backward` of the inner backend.
+//! (`autodiff`) stores the inputs, and what the inner backend's forward kept for the backward
+//! (`keep`), and calls the inner backend's backward.
 
 mod autodiff;
 mod cube;
 mod host;
 mod host_sort;
+mod keep;
+
+pub use keep::{Forward, SplatKeep};
 
 use crate::config::RasterConfig;
 use crate::views::{HostCameras, ViewSets};

@@ -12,6 +12,7 @@ use cubecl::{calculate_cube_count_elemwise, CubeCount, CubeDim};
 const DEPTH_BITS: u32 = 32;
 
 /// The CSR tile lists of one view, on the device.
+#[derive(Clone, Debug)]
 pub struct DeviceBins {
     /// `num_tiles + 1` offsets into `items`.
     pub tile_start: CubeTensor,

@@ -6,7 +6,8 @@
 //! intersection): CubeCL does not support zero-size dispatches, and the zero-filled outputs
 //! are already the right answer.
 
-use super::binning::{bins_of_view, order_view, DepthOrder, DeviceBins};
+use super::binning::{bins_of_view, order_view, DepthOrder};
+use super::kept::ViewRender;
 use super::math::CAM_LANES;
 use super::project_forward::{project_forward, META_LANES, RECORD_LANES};
 use super::rasterize_forward::{rasterize_forward, OUT_CHANNELS, TILE};
@@ -164,17 +165,26 @@ pub(super) struct ViewBins {
 }
 
 impl ViewBins {
-    /// The view's tile lists; `None` when no Gaussian touches a tile.
-    pub(super) fn bins(&self, inp: &Inputs, v: usize) -> Option<DeviceBins> {
+    /// The view with its tile lists, as the compositing reads it; `None` when no Gaussian
+    /// touches a tile.
+    pub(super) fn into_render(self, inp: &Inputs, v: usize) -> Option<ViewRender> {
         let cam = &inp.cams[v];
-        bins_of_view(
+        let bins = bins_of_view(
             &self.depth,
             &self.meta,
             self.rows,
             self.intersections,
             cam.tiles_x(),
             cam.tiles_y(),
-        )
+        )?;
+        Some(ViewRender {
+            first: self.first,
+            rows: self.rows,
+            cam_rec: self.cam_rec,
+            records: self.records,
+            meta: self.meta,
+            bins,
+        })
     }
 }
 
@@ -330,14 +340,17 @@ pub(super) fn view_offset(inp: &Inputs, v: usize) -> u32 {
     u32::try_from(off).expect("splat: image batch too large for 32-bit offsets")
 }
 
-/// `splat_forward` on the GPU: `(image [V,H,W,5], radii [V,R,2], counts [V,2])`.
+/// `splat_forward` on the GPU: `(image [V,H,W,5], radii [V,R,2], counts [V,2])`, and with
+/// `keep` every view as the compositing read it, for the backward (empty without).
 pub fn forward(
     inp: &Inputs,
     cfg: &RasterConfig,
+    keep: bool,
 ) -> (
     FloatTensor<CubeBackend>,
     IntTensor<CubeBackend>,
     IntTensor<CubeBackend>,
+    Vec<Option<ViewRender>>,
 ) {
     let (v_count, r) = (inp.cams.len(), inp.radii_rows);
     let (w, h) = (inp.width as usize, inp.height as usize);
@@ -350,12 +363,16 @@ pub fn forward(
     } else {
         rasterize_forward_per_pixel::launch
     };
+    let mut kept: Vec<Option<ViewRender>> = Vec::new();
+    if keep {
+        kept.resize_with(v_count, || None);
+    }
     for (v, vb) in project_and_bin_all(inp, cfg).into_iter().enumerate() {
         let Some(vb) = vb else {
             continue;
         };
         write_view_meta(inp, v, &vb, &radii, &counts);
-        let Some(bins) = vb.bins(inp, v) else {
+        let Some(view) = vb.into_render(inp, v) else {
             continue;
         };
         let (count, dim) = tile_grid(inp);
@@ -363,9 +380,9 @@ pub fn forward(
             &inp.means.client,
             count,
             dim,
-            vb.records.into_tensor_arg(),
-            bins.tile_start.into_tensor_arg(),
-            bins.items.into_tensor_arg(),
+            view.records.clone().into_tensor_arg(),
+            view.bins.tile_start.clone().into_tensor_arg(),
+            view.bins.items.clone().into_tensor_arg(),
             image.clone().into_tensor_arg(),
             inp.width,
             inp.height,
@@ -375,6 +392,9 @@ pub fn forward(
             cfg.alpha_clamp.max_alpha() as f32,
             cfg.transmittance_min as f32,
         );
+        if keep {
+            kept[v] = Some(view);
+        }
     }
     let image = CubeBackend::float_reshape(image, Shape::new([v_count, h, w, OUT_CHANNELS]));
     // The counters are small non-negative integers: their u32 bits read as i32.
@@ -382,5 +402,5 @@ pub fn forward(
         |t: CubeTensor, shape: Shape| CubeBackend::int_reshape(retype(t, DType::I32), shape);
     let radii = as_int(radii, Shape::new([v_count, r, 2]));
     let counts = as_int(counts, Shape::new([v_count, 2]));
-    (image, radii, counts)
+    (image, radii, counts, kept)
 }

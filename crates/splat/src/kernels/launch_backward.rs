@@ -1,9 +1,11 @@
 //! The host side of the rasterizer's backward pass on CubeCL backends: per view, the
 //! compositing backward (float atomics, or compare-and-swap where the device has none), the
-//! projection backward, and the camera gradient, all on the device. The projection and
-//! binning are recomputed with the forward's code (`launch.rs`).
+//! projection backward, and the camera gradient, all on the device. Each view's projection
+//! and tile lists are the forward's where it kept them (`kept`), else recomputed with the
+//! forward's code (`launch.rs`).
 
 use super::camera_grad::camera_grad_matrices;
+use super::kept::ViewRender;
 use super::launch::{
     flat, project_and_bin_all, shared_batches, tile_grid, view_offset, zeros, Inputs,
 };
@@ -31,12 +33,15 @@ fn has_float_atomic_add(t: &CubeTensor) -> bool {
         .contains(AtomicUsage::Add)
 }
 
-/// `splat_backward` on the GPU; `shapes` are the seven input shapes for the outputs.
+/// `splat_backward` on the GPU; `shapes` are the seven input shapes for the outputs. `kept`
+/// is every view as the forward composited it ([`super::launch::forward`] with `keep`);
+/// `None` projects and bins them again (one more host read).
 pub fn backward(
     inp: &Inputs,
     grad_image: FloatTensor<CubeBackend>,
     shapes: [Shape; 7],
     cfg: &RasterConfig,
+    kept: Option<Vec<Option<ViewRender>>>,
 ) -> SplatGrads<CubeBackend> {
     let n = inp.n;
     let grad_image = flat(grad_image);
@@ -50,12 +55,15 @@ pub fn backward(
     let native = has_float_atomic_add(&inp.means)
         && cfg.grad_accumulation != crate::config::GradAccumulation::CompareAndSwap;
     let batched = shared_batches(&inp.means, cfg.tile_schedule);
-    for (v, vb) in project_and_bin_all(inp, cfg).into_iter().enumerate() {
-        let Some(vb) = vb else {
-            continue;
-        };
-        if let Some(bins) = vb.bins(inp, v) {
-            let (first, n) = (vb.first, vb.rows);
+    let views = kept.unwrap_or_else(|| {
+        let binned = project_and_bin_all(inp, cfg).into_iter().enumerate();
+        binned
+            .map(|(v, vb)| vb.and_then(|vb| vb.into_render(inp, v)))
+            .collect()
+    });
+    for (v, view) in views.into_iter().enumerate() {
+        if let Some(vb) = view {
+            let (first, n, bins) = (vb.first, vb.rows, vb.bins);
             let v_proj = zeros(&inp.means, n * RECORD_LANES);
             let (count, dim) = tile_grid(inp);
             let launch = match (native, batched) {

@@ -9,7 +9,9 @@
 //! [`crate::cpu::bins::bin_tiles`]) → `rasterize_forward` (cube per 16x16 tile, thread per
 //! pixel, records in shared-memory batches; `rasterize_forward_per_pixel` without them, for
 //! a software adapter, see [`crate::config::TileSchedule`]); radii and counts by
-//! `view_meta`. Backward: the same projection and binning, then `rasterize_backward` or
+//! `view_meta`. Backward: the forward's projection and tile lists where it kept them
+//! ([`crate::config::BackwardBins`], `kept`), else the same projection and binning again; then
+//! `rasterize_backward` or
 //! `rasterize_backward_per_pixel` (atomics into per-Gaussian lanes) and `project_backward` (thread per
 //! Gaussian, camera partials reduced with Burn ops). The sort and scan (`radix_sort`, `scan`,
 //! host side `sort`) are general and also exposed as tensor functions
@@ -22,6 +24,7 @@ pub mod bin_tiles;
 pub mod binning;
 pub mod camera_grad;
 pub mod geometry;
+pub mod kept;
 pub mod launch;
 pub mod launch_backward;
 pub mod math;

@@ -10,7 +10,9 @@ use burn::tensor::{DType, Device, Tensor, TensorData};
 use envision4d_splat::testkit::{
     intrinsics, look_at, random_scene, wgpu_test_device, HostScene, SceneSpec, SplitMix64,
 };
-use envision4d_splat::{render, Cameras, Gaussians, GradAccumulation, RasterConfig, TileSchedule};
+use envision4d_splat::{
+    render, BackwardBins, Cameras, Gaussians, GradAccumulation, RasterConfig, TileSchedule,
+};
 
 /// Image tolerance (absolute for colour and alpha, relative for the accumulated depth).
 const IMAGE_TOL: f64 = 1e-5;
@@ -143,7 +145,9 @@ fn max_abs(a: &[f64], b: &[f64]) -> f64 {
 /// Renders on wgpu and on the CPU and asserts parity; returns the worst gradient error seen
 /// (relative to each tensor's largest entry) for the report. With `TileSchedule::Auto` the
 /// wgpu render runs under both schedules, so lavapipe (which `Auto` gives the per-pixel
-/// kernels) also checks the shared batches a GPU runs.
+/// kernels) also checks the shared batches a GPU runs; the batched run's backward reuses the
+/// forward's tile lists and the per-pixel run's bins again (`BackwardBins`), so both
+/// backward paths meet the oracle at no extra run.
 pub(crate) fn check_parity(
     scene: &HostScene,
     views: &[View],
@@ -154,15 +158,19 @@ pub(crate) fn check_parity(
     let gpu = wgpu_test_device()?;
     let wts = weights(scene, views, w, h, cfg, 99);
     let b = run(&Device::flex(), scene, views, w, h, cfg, &wts);
-    let schedules = match cfg.tile_schedule {
-        TileSchedule::Auto => vec![TileSchedule::SharedBatches, TileSchedule::PerPixel],
-        one => vec![one],
+    let runs = match cfg.tile_schedule {
+        TileSchedule::Auto => vec![
+            (TileSchedule::SharedBatches, BackwardBins::Keep),
+            (TileSchedule::PerPixel, BackwardBins::Recompute),
+        ],
+        one => vec![(one, cfg.backward_bins)],
     };
     let mut worst = 0.0f64;
-    for tile_schedule in schedules {
-        eprintln!("tile schedule {tile_schedule:?}:");
+    for (tile_schedule, backward_bins) in runs {
+        eprintln!("tile schedule {tile_schedule:?}, backward bins {backward_bins:?}:");
         let cfg = RasterConfig {
             tile_schedule,
+            backward_bins,
             ..*cfg
         };
         let a = run(&gpu, scene, views, w, h, &cfg, &wts);
@@ -171,8 +179,9 @@ pub(crate) fn check_parity(
     Some(worst)
 }
 
-/// Asserts that the wgpu run `a` matches the CPU run `b`; the worst relative gradient error.
-fn compare(a: &Run, b: &Run) -> f64 {
+/// Asserts that the wgpu run `a` matches the CPU run `b` (or another wgpu run); the worst
+/// relative gradient error.
+pub(crate) fn compare(a: &Run, b: &Run) -> f64 {
     let d_rgb = max_abs(&a.rgb, &b.rgb);
     let d_alpha = max_abs(&a.alpha, &b.alpha);
     // The kernel's channel is the accumulated depth D; expected depth D / A amplifies

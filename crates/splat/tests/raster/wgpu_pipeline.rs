@@ -4,12 +4,12 @@
 //! kernels each tile schedule launches.
 
 use crate::common::View;
-use crate::wgpu_parity::{check_parity, run, t, two_views, weights};
+use crate::wgpu_parity::{check_parity, compare, run, t, two_views, weights};
 use cubecl::logging::{LaunchObservation, LaunchObserver};
 use envision4d_splat::testkit::{
     intrinsics, look_at, random_scene, wgpu_test_device, HostScene, SceneSpec,
 };
-use envision4d_splat::{render, Cameras, Gaussians, RasterConfig, TileSchedule};
+use envision4d_splat::{render, BackwardBins, Cameras, Gaussians, RasterConfig, TileSchedule};
 use std::collections::BTreeSet;
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::sync::{Arc, Mutex};
@@ -114,7 +114,10 @@ fn wgpu_opaque_stack_stops_like_cpu() {
 /// Guards the device-resident pipeline (no per-Gaussian or per-pixel data, no camera
 /// gradient and no per-view round trip crossing to the host): a forward and backward of three
 /// views reads back the two camera tensors once (validation hands them to the kernels, so
-/// neither pass reads them again) and, per pass, one buffer of the views' intersection totals.
+/// neither pass reads them again) and one buffer of the views' intersection totals in the
+/// forward. The backward reads nothing when it reuses the forward's tile lists
+/// (`BackwardBins::Keep`, the default) and bins again with one read of its own under
+/// `Recompute`; both give the same render and gradients.
 #[test]
 fn wgpu_render_reads_back_only_cameras_and_counts() {
     let Some(gpu) = wgpu_test_device() else {
@@ -128,16 +131,30 @@ fn wgpu_render_reads_back_only_cameras_and_counts() {
         intrinsics(w, h, 30.0),
     ));
     let wts = weights(&scene, &views, w, h, &RasterConfig::default(), 3);
-    let before = envision4d_splat::kernels::readback::host_readbacks();
-    let r = run(&gpu, &scene, &views, w, h, &RasterConfig::default(), &wts);
-    let reads = envision4d_splat::kernels::readback::host_readbacks() - before;
-    assert!(
-        r.counts.iter().skip(1).step_by(2).all(|&c| c > 0),
-        "every view has tiles"
-    );
-    // The 2 camera tensors once (validation hands them to the kernels), then per pass
-    // (forward, backward) 1 read of all views' totals.
-    assert_eq!(reads, 2 + 2, "host readbacks of one forward+backward");
+    let mut runs = Vec::new();
+    // The 2 camera tensors once, then 1 read of all views' totals per pass that bins.
+    for (backward_bins, want) in [
+        (BackwardBins::Keep, 2 + 1),
+        (BackwardBins::Recompute, 2 + 2),
+    ] {
+        let cfg = RasterConfig {
+            backward_bins,
+            ..RasterConfig::default()
+        };
+        let before = envision4d_splat::kernels::readback::host_readbacks();
+        let r = run(&gpu, &scene, &views, w, h, &cfg, &wts);
+        let reads = envision4d_splat::kernels::readback::host_readbacks() - before;
+        assert!(
+            r.counts.iter().skip(1).step_by(2).all(|&c| c > 0),
+            "every view has tiles"
+        );
+        assert_eq!(
+            reads, want,
+            "host readbacks of one forward+backward, {backward_bins:?}"
+        );
+        runs.push(r);
+    }
+    compare(&runs[0], &runs[1]);
 }
 
 /// The compositing kernels launched on this thread while it was installed, by type name.
