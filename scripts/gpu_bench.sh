@@ -12,7 +12,7 @@
 #   PRECISIONS=f32 scripts/gpu_bench.sh           # the forward in f32 only (default f32 f16 bf16)
 #   SKIP_MODEL=1 scripts/gpu_bench.sh             # the rasterizer only
 #   BACKENDS=cuda CUDA=1 scripts/gpu_bench.sh     # one backend only
-#   COMPARE_AT=100000 scripts/gpu_bench.sh        # the tile schedules compared at this size
+#   COMPARE_AT=100000 scripts/gpu_bench.sh        # schedules and backward bins compared here
 #                                                 # (default 362600; empty: not compared)
 #
 # Each backend runs whole (rasterizer, then model) before the next, CUDA first, and the
@@ -45,8 +45,10 @@ MODEL_MODES=${MODEL_MODES:-forward train}
 # gets a NaN row: wgpu has no bf16).
 PRECISIONS=${PRECISIONS:-f32 f16 bf16}
 BACKENDS=${BACKENDS:-$DEFAULT_BACKENDS}
-# One scene rendered with both tile schedules of the compositing kernels (`TileSchedule`):
-# the evidence for what `auto` picks on each device.
+# One scene rendered with both tile schedules of the compositing kernels (`TileSchedule`),
+# each with the backward reusing the forward's tile lists and binning again
+# (`BackwardBins`): the evidence for what `auto` picks on each device, and what keeping the
+# lists saves there.
 COMPARE_AT=${COMPARE_AT-362600}
 mkdir -p "$OUT"
 export XDG_RUNTIME_DIR="${XDG_RUNTIME_DIR:-$(mktemp -d)}"
@@ -123,9 +125,10 @@ for b in ${BACKENDS//,/ }; do
     || echo "raster bench on $b failed (exit ${PIPESTATUS[0]}; its messages are in the run's log)" | tee -a "$OUT/raster.md.tmp"
   write_table
   if [ -n "$COMPARE_AT" ]; then
-    echo "== tile schedules on $b at $COMPARE_AT Gaussians"
-    echo -e "\nTile schedules compared:\n" >> "$OUT/raster.md.tmp"
-    "$BIN" --backends "$b" --sizes "$COMPARE_AT" --schedules shared,per-pixel --no-sort \
+    echo "== tile schedules and backward bins on $b at $COMPARE_AT Gaussians"
+    echo -e "\nTile schedules and backward bins compared:\n" >> "$OUT/raster.md.tmp"
+    "$BIN" --backends "$b" --sizes "$COMPARE_AT" --schedules shared,per-pixel \
+      --backward-bins keep,recompute --no-sort \
       --json "$OUT/schedules-$b.json" | tee -a "$OUT/raster.md.tmp" \
       || echo "schedule comparison on $b failed (exit ${PIPESTATUS[0]})" | tee -a "$OUT/raster.md.tmp"
     write_table

@@ -5,7 +5,8 @@
 //! `... -- --backends wgpu,cuda --sizes 362600,1000000,3000000 --json FILE` (what
 //! `scripts/gpu_bench.sh` runs; `cuda` needs `--features envision4d-splat/cuda`).
 //! `--schedules auto,shared,per-pixel` times each tile schedule of the compositing kernels
-//! (`TileSchedule`; default `auto`); `--no-sort` skips the sort and scan table; `--kernels`
+//! (`TileSchedule`; default `auto`); `--backward-bins keep,recompute` whether the backward
+//! reuses the forward's tile lists (`BackwardBins`; default `keep`); `--no-sort` skips the sort and scan table; `--kernels`
 //! adds, per row, the device time of each kernel of one forward+backward
 //! ([`kernel_times`]).
 //! Prints ms per view and Gaussian-tile pairs per second, then the binning's building blocks
@@ -18,7 +19,7 @@ use burn::tensor::{DType, Int, Tensor, TensorData};
 use burn::tensor::{Device, DeviceKind};
 use envision4d_splat::primitives::{exclusive_scan, sort_pairs};
 use envision4d_splat::testkit::{look_at, HostScene, SplitMix64};
-use envision4d_splat::{render, Cameras, Gaussians, RasterConfig, TileSchedule};
+use envision4d_splat::{render, BackwardBins, Cameras, Gaussians, RasterConfig, TileSchedule};
 use std::time::{Duration, Instant};
 
 const W: u32 = 518;
@@ -170,6 +171,11 @@ fn main() {
         .split(',')
         .map(schedule)
         .collect();
+    let bins: Vec<(&str, BackwardBins)> = arg(&args, "--backward-bins")
+        .unwrap_or_else(|| "keep".into())
+        .split(',')
+        .map(backward_bins)
+        .collect();
     let mut json_rows = Vec::new();
     let sort_devices = devices.clone();
     let kernels = args.iter().any(|a| a == "--kernels");
@@ -182,26 +188,38 @@ fn main() {
     );
     println!("| backend | Gaussians | visible | tile pairs | forward ms/view | fwd+bwd ms/view | fwd pairs/s | fwd+bwd pairs/s |");
     println!("|---|---|---|---|---|---|---|---|");
-    // The CPU path has no tile schedule (it picks GPU kernels): one row set for it.
+    // The CPU path has no tile schedule (it picks GPU kernels) and keeps nothing for its
+    // backward: one row set for it.
     let runs = devices.iter().flat_map(|d| {
-        let take = if d.0.starts_with("cpu") {
-            1
+        let (take_s, take_b) = if d.0.starts_with("cpu") {
+            (1, 1)
         } else {
-            schedules.len()
+            (schedules.len(), bins.len())
         };
-        schedules.iter().take(take).map(move |s| (d, s))
+        let bins = &bins[..take_b];
+        schedules
+            .iter()
+            .take(take_s)
+            .flat_map(move |s| bins.iter().map(move |b| (d, s, b)))
     });
-    for ((backend, device), &(sched_name, tile_schedule)) in runs {
+    for ((backend, device), &(sched_name, tile_schedule), &(bins_name, backward_bins)) in runs {
         let cfg = RasterConfig {
             tile_schedule,
+            backward_bins,
             ..RasterConfig::default()
         };
-        let (name, sched_json) = if backend.starts_with("cpu") {
-            (backend.to_string(), "null".to_owned())
+        let (name, sched_json, bins_json) = if backend.starts_with("cpu") {
+            (backend.to_string(), "null".to_owned(), "null".to_owned())
         } else {
+            // Rows of the default (`keep`) carry only the schedule, as before the flag.
+            let bins_label = match backward_bins {
+                BackwardBins::Keep => String::new(),
+                BackwardBins::Recompute => format!(", {bins_name}"),
+            };
             (
-                format!("{backend} ({sched_name})"),
+                format!("{backend} ({sched_name}{bins_label})"),
                 format!("\"{sched_name}\""),
+                format!("\"{bins_name}\""),
             )
         };
         for &n in sizes.iter().filter(|n| **n <= max_n) {
@@ -236,7 +254,7 @@ fn main() {
                 for k in &rows {
                     json_rows.push(format!(
                         "{{\"kind\":\"kernel\",\"backend\":\"{backend}\",\"schedule\":{sched_json},\
-                         \"gaussians\":{n},\"kernel\":\"{}\",\"launches\":{},\"total_ms\":{:.4}}}",
+                         \"backward_bins\":{bins_json},\"gaussians\":{n},\"kernel\":\"{}\",\"launches\":{},\"total_ms\":{:.4}}}",
                         k.name, k.launches, k.total_ms
                     ));
                 }
@@ -244,7 +262,7 @@ fn main() {
             }
             json_rows.push(format!(
                 "{{\"kind\":\"raster\",\"backend\":\"{backend}\",\"schedule\":{sched_json},\
-                 \"gaussians\":{n},\"visible\":{},\"tile_pairs\":{},\"forward_ms\":{:.3},\"fwd_bwd_ms\":{:.3}}}",
+                 \"backward_bins\":{bins_json},\"gaussians\":{n},\"visible\":{},\"tile_pairs\":{},\"forward_ms\":{:.3},\"fwd_bwd_ms\":{:.3}}}",
                 counts[0],
                 counts[1],
                 fwd.as_secs_f64() * 1e3,
@@ -334,6 +352,15 @@ fn arg(args: &[String], name: &str) -> Option<String> {
     args.iter()
         .position(|a| a == name)
         .and_then(|i| args.get(i + 1).cloned())
+}
+
+/// A name of `--backward-bins` as what the forward keeps for the backward.
+fn backward_bins(name: &str) -> (&'static str, BackwardBins) {
+    match name {
+        "keep" => ("keep", BackwardBins::Keep),
+        "recompute" => ("recompute", BackwardBins::Recompute),
+        other => panic!("--backward-bins: {other} is not keep or recompute"),
+    }
 }
 
 /// A name of `--schedules` as its tile schedule.
