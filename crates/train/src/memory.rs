@@ -92,6 +92,9 @@ pub struct StepMemory {
     pub teacher_first: f64,
     pub teacher_later: f64,
     pub activations: f64,
+    /// What the GPU rasterizer's forward holds for its backward (`[run]
+    /// recompute_raster_bins` off): device memory only, the CPU path keeps nothing.
+    pub raster_bins: f64,
     pub counts: Counts,
 }
 
@@ -111,9 +114,10 @@ impl StepMemory {
         self.first_step() - self.teacher_first + self.teacher_later + self.optimizer
     }
 
-    /// What a GPU would hold: the same tensors without the host process.
+    /// What a GPU would hold: the same tensors without the host process, plus the
+    /// rasterizer's kept tile lists.
     pub fn device_tensors(&self) -> f64 {
-        self.later_steps() - self.runtime
+        self.later_steps() - self.runtime + self.raster_bins
     }
 }
 
@@ -276,8 +280,32 @@ pub fn estimate_with(
             + k.dpt * c.dpt_pixel_channels
             + k.render * c.rendered_pixels
             + k.lpips * c.lpips_pixels,
+        raster_bins: raster_bins(cfg),
         counts: c,
     }
+}
+
+/// Bytes the GPU forward keeps per Gaussian and rendered view for the backward: ten record
+/// and six meta f32 lanes (`envision4d_splat::BackwardBins::Keep`).
+pub const KEPT_BYTES_PER_GAUSSIAN: f64 = 64.0;
+/// Tile intersections per visible Gaussian, 4 bytes each, of per-pixel Gaussians at 350x518:
+/// 216 842 for 94 697 in the raster bench's street scene (`docs/PERFORMANCE.md`). The only
+/// part of the kept bytes that depends on the scene.
+pub const KEPT_INTERSECTIONS_PER_GAUSSIAN: f64 = 2.3;
+
+/// What the GPU rasterizer holds from a step's forward to its backward: every rendered view
+/// (B x (T_c + T_f)) renders at most the T_c context frames' per-pixel Gaussians
+/// (self-exclusive views fewer), so a bound. 0 with `[run] recompute_raster_bins` and in the
+/// backbone stage, which renders nothing.
+pub fn raster_bins(cfg: &TrainConfig) -> f64 {
+    if cfg.run.recompute_raster_bins || cfg.stage == Stage::Backbone {
+        return 0.0;
+    }
+    let m = &cfg.model;
+    let [h, w] = m.image_size;
+    let views = (cfg.optim.batch_size * m.num_frames()) as f64;
+    let gaussians = (m.context_frames * h * w) as f64;
+    views * gaussians * (KEPT_BYTES_PER_GAUSSIAN + 4.0 * KEPT_INTERSECTIONS_PER_GAUSSIAN)
 }
 
 /// [`estimate_with`] the [`FITTED`] coefficients.

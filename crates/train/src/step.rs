@@ -22,7 +22,7 @@ use envision4d_losses::{psnr_from_mse, Lpips, LpipsNet, LpipsStatus, LpipsWeight
 use envision4d_model::aggregator::BlockMemory;
 use envision4d_model::scene::{predict_scene_with, Motion};
 use envision4d_model::Envision4d;
-use envision4d_splat::RasterConfig;
+use envision4d_splat::{BackwardBins, RasterConfig};
 
 fn make_rgb_loss(config: &TrainConfig, device: &Device) -> Result<RgbLoss> {
     let path = config.loss.lpips_weights.as_deref();
@@ -67,6 +67,19 @@ pub(crate) fn teacher_is_init(config: &TrainConfig) -> bool {
         (Some(t), Some(i)) => t == i,
         (None, None) => config.init == Init::Random,
         (Some(_), None) => false,
+    }
+}
+
+/// The rasterizer settings of a run: gsplat 1.5.3's, with what the GPU forward keeps for
+/// its backward from `[run] recompute_raster_bins`.
+pub fn raster_config(config: &TrainConfig) -> RasterConfig {
+    RasterConfig {
+        backward_bins: if config.run.recompute_raster_bins {
+            BackwardBins::Recompute
+        } else {
+            BackwardBins::Keep
+        },
+        ..RasterConfig::default()
     }
 }
 
@@ -128,12 +141,13 @@ impl Trainer {
             model.aggregator.block_memory = BlockMemory::RecomputeFrozen;
         }
         let optim = make_optimizer(&config);
+        let raster = raster_config(&config);
         Ok(Trainer {
             model,
             schedule: Schedule::from_config(&config),
             config,
             split,
-            raster: RasterConfig::default(),
+            raster,
             rgb_losses: vec![(device.clone(), rgb_loss)],
             optim,
             teacher,

@@ -78,9 +78,18 @@ pub fn describe_estimate(m: &StepMemory, backend: BackendChoice) -> String {
             g(total)
         ));
     }
+    let bins = if m.raster_bins > 0.0 {
+        format!(
+            ", plus {} GiB of tile lists the rasterizer keeps for its backward \
+             ([run] recompute_raster_bins drops them)",
+            g(m.raster_bins)
+        )
+    } else {
+        String::new()
+    };
     out.push_str(&format!(
         "\n  on a GPU: about {} GiB of device memory (the same tensors without the host \
-         process; the device's allocator adds slack this estimate does not know)",
+         process{bins}; the device's allocator adds slack this estimate does not know)",
         g(m.device_tensors())
     ));
     out

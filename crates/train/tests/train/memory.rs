@@ -66,3 +66,49 @@ fn memory_counts_of_the_paper_config() {
     let global = envision4d_train::memory::counts(&c);
     assert_eq!(global.block_token_channels, tokens * 51.0 * 1024.0);
 }
+
+/// Guards the GPU estimate's kept tile lists, which the CPU-fitted terms cannot see: the
+/// paper's config at batch 1 renders 4 views of at most 2 context frames' per-pixel
+/// Gaussians, each 64 bytes plus 2.3 intersections of 4; the device estimate adds them, and
+/// `run.recompute_raster_bins` (settable with `--set`) drops them and switches the trainer's
+/// rasterizer to binning again in the backward.
+#[test]
+fn device_estimate_holds_the_kept_raster_bins() {
+    use envision4d_splat::BackwardBins;
+    use envision4d_train::load::load_with_overrides;
+    use envision4d_train::memory::{raster_bins, StepMemory};
+    use envision4d_train::step::raster_config;
+    let set = |v: &[&str]| {
+        let v: Vec<String> = v.iter().map(|s| s.to_string()).collect();
+        load_with_overrides(&config_path("waymo.toml"), &v).unwrap()
+    };
+    let c = set(&["optim.batch_size=1"]);
+    let want = 4.0 * 2.0 * 350.0 * 518.0 * (64.0 + 4.0 * 2.3);
+    assert!(
+        (raster_bins(&c) - want).abs() <= 1e-9 * want,
+        "{}",
+        raster_bins(&c)
+    );
+    assert_eq!(raster_config(&c).backward_bins, BackwardBins::Keep);
+    let m = StepMemory {
+        runtime: 5.0,
+        parameters: 7.0,
+        lpips_weights: 0.0,
+        gradients: 0.0,
+        optimizer: 0.0,
+        teacher_first: 0.0,
+        teacher_later: 0.0,
+        activations: 11.0,
+        raster_bins: 13.0,
+        counts: Default::default(),
+    };
+    assert_eq!((m.later_steps(), m.device_tensors()), (23.0, 31.0));
+    let r = set(&["optim.batch_size=1", "run.recompute_raster_bins=true"]);
+    assert_eq!(raster_bins(&r), 0.0);
+    assert_eq!(raster_config(&r).backward_bins, BackwardBins::Recompute);
+    // The switch is a `[run]` key: a resume may change it.
+    assert_eq!(
+        envision4d_train::checkpoint::resume_identity(&c),
+        envision4d_train::checkpoint::resume_identity(&r)
+    );
+}
