@@ -7,6 +7,8 @@
 #
 #   scripts/will_it_fit.sh [ENVISION4D_BINARY]     (default: the release build)
 #
+# The device column includes the tile lists the GPU rasterizer keeps for its backward (the
+# default; `run.recompute_raster_bins` drops them), the host column has none.
 # A GPU "fits" when the estimated device memory is at most 90% of its memory: the rest is
 # left to the CUDA/Vulkan context and the allocator's slack, which no GPU measured yet.
 set -euo pipefail

@@ -7,7 +7,7 @@
 //! with `Recompute` it projects and bins again, holding less between the passes. A forward
 //! nothing will differentiate keeps nothing.
 
-use super::{SplatGrads, SplatKeep, SplatOps};
+use super::{Forward, SplatGrads, SplatKeep, SplatOps};
 use crate::config::{BackwardBins, RasterConfig};
 use crate::views::{HostCameras, ViewSets};
 use burn::backend::autodiff::checkpoint::{base::Checkpointer, strategy::CheckpointStrategy};
@@ -62,24 +62,15 @@ impl<B: SplatKeep> Backward<B, 7> for RenderBackward {
                 host_cameras,
                 config,
             ),
-            None => {
-                let [m, q, s, o, c, v, k] = inputs;
-                B::splat_backward(
-                    m,
-                    q,
-                    s,
-                    o,
-                    c,
-                    v,
-                    k,
-                    grad_image,
-                    width,
-                    height,
-                    sets,
-                    host_cameras,
-                    config,
-                )
-            }
+            None => backward_of::<B>(
+                inputs,
+                grad_image,
+                width,
+                height,
+                sets,
+                host_cameras,
+                config,
+            ),
         };
         for (parent, grad) in ops.parents.into_iter().zip([
             g.means,
@@ -95,6 +86,60 @@ impl<B: SplatKeep> Backward<B, 7> for RenderBackward {
             }
         }
     }
+}
+
+/// [`SplatOps::splat_forward`] with its seven inputs as one array.
+fn forward_of<B: SplatOps>(
+    inputs: [FloatTensor<B>; 7],
+    width: u32,
+    height: u32,
+    sets: ViewSets,
+    host_cameras: HostCameras,
+    config: RasterConfig,
+) -> Forward<B> {
+    let [m, q, s, o, c, v, k] = inputs;
+    B::splat_forward(
+        m,
+        q,
+        s,
+        o,
+        c,
+        v,
+        k,
+        width,
+        height,
+        sets,
+        host_cameras,
+        config,
+    )
+}
+
+/// [`SplatOps::splat_backward`] with its seven inputs as one array.
+fn backward_of<B: SplatOps>(
+    inputs: [FloatTensor<B>; 7],
+    grad_image: FloatTensor<B>,
+    width: u32,
+    height: u32,
+    sets: ViewSets,
+    host_cameras: HostCameras,
+    config: RasterConfig,
+) -> SplatGrads<B> {
+    let [m, q, s, o, c, v, k] = inputs;
+    B::splat_backward(
+        m,
+        q,
+        s,
+        o,
+        c,
+        v,
+        k,
+        grad_image,
+        width,
+        height,
+        sets,
+        host_cameras,
+        config,
+    )
 }
 
 impl<B: SplatKeep, C: CheckpointStrategy> SplatOps for Autodiff<B, C> {
@@ -115,39 +160,26 @@ impl<B: SplatKeep, C: CheckpointStrategy> SplatOps for Autodiff<B, C> {
         let tensors = [means, quats, scales, opacities, colors, viewmats, ks];
         let nodes = tensors.each_ref().map(|t| t.node());
         let inner = tensors.map(|t| t.into_primitive());
-        let [m, q, s, o, c, v, k] = inner.clone();
         match RenderBackward
             .prepare::<C>(nodes)
             .compute_bound()
             .stateful()
         {
             OpsKind::Tracked(prep) => {
+                let (cameras, sets_kept) = (host_cameras.clone(), sets.clone());
                 let ((image, radii, counts), kept) = match config.backward_bins {
                     BackwardBins::Keep => B::splat_forward_kept(
                         inner.clone(),
                         width,
                         height,
-                        sets.clone(),
-                        host_cameras.clone(),
+                        sets_kept,
+                        cameras,
                         config,
                     ),
-                    BackwardBins::Recompute => {
-                        let out = B::splat_forward(
-                            m,
-                            q,
-                            s,
-                            o,
-                            c,
-                            v,
-                            k,
-                            width,
-                            height,
-                            sets.clone(),
-                            host_cameras.clone(),
-                            config,
-                        );
-                        (out, None)
-                    }
+                    BackwardBins::Recompute => (
+                        forward_of::<B>(inner.clone(), width, height, sets_kept, cameras, config),
+                        None,
+                    ),
                 };
                 let state = RenderState {
                     inputs: inner,
@@ -161,20 +193,8 @@ impl<B: SplatKeep, C: CheckpointStrategy> SplatOps for Autodiff<B, C> {
                 (prep.finish(state, image), radii, counts)
             }
             OpsKind::UnTracked(prep) => {
-                let (image, radii, counts) = B::splat_forward(
-                    m,
-                    q,
-                    s,
-                    o,
-                    c,
-                    v,
-                    k,
-                    width,
-                    height,
-                    sets,
-                    host_cameras,
-                    config,
-                );
+                let (image, radii, counts) =
+                    forward_of::<B>(inner, width, height, sets, host_cameras, config);
                 (prep.finish(image), radii, counts)
             }
         }
