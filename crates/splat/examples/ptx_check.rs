@@ -145,7 +145,7 @@ fn main() {
         kernel!("scan_blocks", scan::scan_blocks::ScanBlocks, Line, [T T T s s s]),
         kernel!("scan_add", scan::scan_add::ScanAdd, Line, [T T s]),
         kernel!("scan_wrapped", scan::scan_wrapped::ScanWrapped, Line, [T T s s]),
-        kernel!("radii_and_flags", view_meta::radii_and_flags::RadiiAndFlags, Line, [T T T s s s]),
+        kernel!("view_radii", view_meta::view_radii::ViewRadii, Line, [T T s s s]),
         kernel!("view_counts", view_meta::view_counts::ViewCounts, Line, [T T s s s]),
     ];
     let options = PlironOptions {

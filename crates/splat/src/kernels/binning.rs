@@ -36,6 +36,13 @@ pub struct DepthOrder {
     offsets: CubeTensor,
 }
 
+impl DepthOrder {
+    /// The `n` depth keys in ascending order, culled ones (`CULLED`) last.
+    pub fn sorted_keys(&self) -> &CubeTensor {
+        &self.keys
+    }
+}
+
 /// Depth keys, the stable depth sort, tile counts and their scan for one view's `n > 0`
 /// projected Gaussians; the view's intersection count goes to `totals[view]` on the device.
 /// `totals[wrap_slot]` becomes 1 if the count scan wrapped past `u32::MAX` (2^32 or more

@@ -13,8 +13,8 @@ use super::project_forward::{project_forward, META_LANES, RECORD_LANES};
 use super::rasterize_forward::{rasterize_forward, OUT_CHANNELS, TILE};
 use super::rasterize_forward_per_pixel::rasterize_forward_per_pixel;
 use super::readback::read_u32s;
-use super::sort::{empty_u32, exclusive_scan, retype};
-use super::view_meta::{radii_and_flags, view_counts};
+use super::sort::retype;
+use super::view_meta::{view_counts, view_radii};
 use crate::camera::Camera;
 use crate::config::{RasterConfig, TileSchedule};
 use crate::views::{HostCameras, ViewSets};
@@ -292,30 +292,26 @@ fn project(inp: &Inputs, v: usize, cfg: &RasterConfig) -> (CubeTensor, CubeTenso
 fn write_view_meta(inp: &Inputs, v: usize, vb: &ViewBins, radii: &CubeTensor, counts: &CubeTensor) {
     let client = &inp.means.client;
     let n = vb.rows;
-    let flags = empty_u32(&inp.means, n);
     let dim = CubeDim::new(client, n);
-    radii_and_flags::launch(
+    view_radii::launch(
         client,
         calculate_cube_count_elemwise(client, n, dim),
         dim,
         vb.meta.clone().into_tensor_arg(),
         radii.clone().into_tensor_arg(),
-        flags.clone().into_tensor_arg(),
         n as u32,
         inp.radii_rows as u32,
         v as u32,
     );
-    let visible = exclusive_scan(&flags, n, n + 1);
-    let intersections = vb.intersections;
     view_counts::launch(
         client,
         CubeCount::new_single(),
         CubeDim::new_1d(1),
-        visible.into_tensor_arg(),
+        vb.depth.sorted_keys().clone().into_tensor_arg(),
         counts.clone().into_tensor_arg(),
         n as u32,
         v as u32,
-        u32::try_from(intersections).expect("splat: tile intersections exceed u32"),
+        u32::try_from(vb.intersections).expect("splat: tile intersections exceed u32"),
     );
 }
 
