@@ -263,8 +263,8 @@ thread_local! {
 
 /// Rasterizer calls ([`render`], [`render_each`]) this thread has made so far. Each costs a
 /// fixed number of host reads whatever its number of views (the cameras, and on GPU
-/// backends one read of all views' intersection totals per pass), so tests hold callers to
-/// a number of calls.
+/// backends one read of all views' intersection totals per pass that bins), so tests hold
+/// callers to a number of calls.
 pub fn render_calls() -> usize {
     RENDER_CALLS.with(std::cell::Cell::get)
 }

@@ -1,7 +1,7 @@
 //! Every device-to-host read of the CubeCL rasterizer goes through here, so they can be
 //! counted: a test holds a render call to its cameras (two tiny tensors, read once by
-//! validation and handed to the kernels) and one read of its views' intersection totals per
-//! pass (forward, backward).
+//! validation and handed to the kernels) and one read of its views' intersection totals in
+//! the forward (and one more in a backward that bins again, `BackwardBins::Recompute`).
 
 use burn::backend::ops::IntTensorOps;
 use burn::tensor::read_sync;
@@ -14,9 +14,10 @@ thread_local! {
 }
 
 /// How many times this thread's renders have read the device back so far. A render call
-/// reads its cameras once (two tiny tensors, while validating) and, per pass, its views'
-/// intersection totals and wrap flags (8 bytes per view, one read); nothing else comes back. Tests count with it; it is per thread
-/// so parallel tests do not disturb each other.
+/// reads its cameras once (two tiny tensors, while validating) and, per pass that bins (the
+/// forward; the backward too under `BackwardBins::Recompute`), its views' intersection
+/// totals and wrap flags (8 bytes per view, one read); nothing else comes back. Tests count
+/// with it; it is per thread so parallel tests do not disturb each other.
 pub fn host_readbacks() -> usize {
     READBACKS.with(|c| c.get())
 }
