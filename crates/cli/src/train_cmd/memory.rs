@@ -80,8 +80,8 @@ pub fn describe_estimate(m: &StepMemory, backend: BackendChoice) -> String {
     }
     let bins = if m.raster_bins > 0.0 {
         format!(
-            ", plus {} GiB of tile lists the rasterizer keeps for its backward \
-             ([run] recompute_raster_bins drops them)",
+            ", plus {} GiB of tile lists the rasterizer keeps for its backward, dropped by \
+             `[run] recompute_raster_bins = true`",
             g(m.raster_bins)
         )
     } else {
