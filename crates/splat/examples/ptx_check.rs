@@ -144,6 +144,7 @@ fn main() {
         kernel!("rasterize_forward_per_pixel", rasterize_forward_per_pixel::rasterize_forward_per_pixel::RasterizeForwardPerPixel, Tile, [T T T T s s s s s s s]),
         kernel!("scan_blocks", scan::scan_blocks::ScanBlocks, Line, [T T T s s s]),
         kernel!("scan_add", scan::scan_add::ScanAdd, Line, [T T s]),
+        kernel!("scan_add_inline", scan::scan_add_inline::ScanAddInline, Line, [T T s]),
         kernel!("scan_wrapped", scan::scan_wrapped::ScanWrapped, Line, [T T s s]),
         kernel!("view_radii", view_meta::view_radii::ViewRadii, Line, [T T s s s]),
         kernel!("view_counts", view_meta::view_counts::ViewCounts, Line, [T T s s s]),

@@ -4,7 +4,9 @@
 //! reinterpreted bit for bit: same size, same bits).
 
 use super::radix_sort::{radix_count, radix_scatter, RADIX, RADIX_BITS, SORT_BLOCK, SORT_THREADS};
-use super::scan::{scan_add, scan_blocks, scan_wrapped, SCAN_BLOCK, SCAN_THREADS};
+use super::scan::{
+    scan_add, scan_add_inline, scan_blocks, scan_wrapped, INLINE_BLOCKS, SCAN_BLOCK, SCAN_THREADS,
+};
 use burn::backend::TensorMetadata;
 use burn::tensor::{DType, Shape};
 use burn_cubecl::ops::numeric::empty_device_dtype;
@@ -80,16 +82,28 @@ pub fn exclusive_scan(input: &CubeTensor, len_in: usize, len_out: usize) -> Cube
         blocks,
     );
     if blocks > 1 {
-        let offsets = exclusive_scan(&sums, blocks as usize, blocks as usize);
         let dim = CubeDim::new(client, len_out);
-        scan_add::launch(
-            client,
-            calculate_cube_count_elemwise(client, len_out, dim),
-            dim,
-            output.clone().into_tensor_arg(),
-            offsets.into_tensor_arg(),
-            len_out_u,
-        );
+        let count = calculate_cube_count_elemwise(client, len_out, dim);
+        if blocks <= INLINE_BLOCKS {
+            scan_add_inline::launch(
+                client,
+                count,
+                dim,
+                output.clone().into_tensor_arg(),
+                sums.into_tensor_arg(),
+                len_out_u,
+            );
+        } else {
+            let offsets = exclusive_scan(&sums, blocks as usize, blocks as usize);
+            scan_add::launch(
+                client,
+                count,
+                dim,
+                output.clone().into_tensor_arg(),
+                offsets.into_tensor_arg(),
+                len_out_u,
+            );
+        }
     }
     output
 }

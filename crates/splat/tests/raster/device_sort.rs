@@ -133,13 +133,24 @@ fn check_scan(name: &str, values: &[u32]) {
     }
 }
 
-/// Guards a scan whose block offsets are wrong at block edges or at two and three levels.
+/// Guards a scan whose block offsets are wrong at block edges, at two and three levels, or
+/// on either side of the in-place block sums' limit.
 #[test]
 fn exclusive_scan_equals_a_running_sum() {
     check_scan("empty", &[]);
     check_scan("one", &[5]);
     check_scan("two", &[5, 7]);
-    for n in [1_023, 1_024, 1_025, 4_096 + 3] {
+    // n values scan into n + 1 outputs: up to 16 blocks (n = 16 * 1 024 - 1) the block totals
+    // are summed where they are added; from 17 on they are scanned first.
+    for n in [
+        1_023,
+        1_024,
+        1_025,
+        4_096 + 3,
+        16 * 1_024,
+        16 * 1_024 + 1,
+        40_000,
+    ] {
         check_scan(&format!("{n} values"), &random(n, n as u64, 100));
     }
     check_scan("all zero", &[0; 3_000]);
