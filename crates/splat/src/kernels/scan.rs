@@ -101,7 +101,7 @@ pub fn scan_add(output: &mut Tensor<u32>, block_offsets: &Tensor<u32>, len_out: 
     }
 }
 
-/// [`scan_add`] for a scan of at most [`INLINE_BLOCKS`] blocks, without scanning the block
+/// [`scan_add`](fn@scan_add) for a scan of at most [`INLINE_BLOCKS`] blocks, without scanning the block
 /// totals first: each element sums the totals of the blocks before its own (at most
 /// `INLINE_BLOCKS - 1` reads, the same for every unit of a cube). One launch instead of two;
 /// the radix sort's digit tables of up to a million keys take this path in every pass.
