@@ -33,15 +33,7 @@ impl SplatOps for CubeBackend {
         config: RasterConfig,
     ) -> (FloatTensor<Self>, IntTensor<Self>, IntTensor<Self>) {
         let inputs = [means, quats, scales, opacities, colors, viewmats, ks];
-        if inputs.iter().any(|t| t.dtype() != DType::F32) {
-            return host::forward::<Self>(inputs, width, height, &sets, &config);
-        }
-        let (image, radii, counts, _) = launch::forward(
-            &Inputs::new(inputs, &host_cameras, width, height, &sets),
-            &config,
-            false,
-        );
-        (image, radii, counts)
+        forward(inputs, width, height, &sets, &host_cameras, &config, false).0
     }
 
     fn splat_backward(
@@ -60,16 +52,15 @@ impl SplatOps for CubeBackend {
         config: RasterConfig,
     ) -> SplatGrads<Self> {
         let inputs = [means, quats, scales, opacities, colors, viewmats, ks];
-        if inputs.iter().any(|t| t.dtype() != DType::F32) || grad_image.dtype() != DType::F32 {
-            return host::backward::<Self>(inputs, grad_image, width, height, &sets, &config);
-        }
-        let shapes = inputs.each_ref().map(|t| t.shape());
-        launch_backward::backward(
-            &Inputs::new(inputs, &host_cameras, width, height, &sets),
+        backward(
+            inputs,
             grad_image,
-            shapes,
-            &config,
             None,
+            width,
+            height,
+            &sets,
+            &host_cameras,
+            &config,
         )
     }
 
@@ -132,18 +123,7 @@ impl SplatKeep for CubeBackend {
         host_cameras: HostCameras,
         config: RasterConfig,
     ) -> (Forward<Self>, Option<Self::Kept>) {
-        if inputs.iter().any(|t| t.dtype() != DType::F32) {
-            return (
-                host::forward::<Self>(inputs, width, height, &sets, &config),
-                None,
-            );
-        }
-        let (image, radii, counts, kept) = launch::forward(
-            &Inputs::new(inputs, &host_cameras, width, height, &sets),
-            &config,
-            true,
-        );
-        ((image, radii, counts), Some(kept))
+        forward(inputs, width, height, &sets, &host_cameras, &config, true)
     }
 
     fn splat_backward_kept(
@@ -156,16 +136,59 @@ impl SplatKeep for CubeBackend {
         host_cameras: HostCameras,
         config: RasterConfig,
     ) -> SplatGrads<Self> {
-        let shapes = inputs.each_ref().map(|t| t.shape());
-        if grad_image.dtype() != DType::F32 {
-            return host::backward::<Self>(inputs, grad_image, width, height, &sets, &config);
-        }
-        launch_backward::backward(
-            &Inputs::new(inputs, &host_cameras, width, height, &sets),
+        let kept = Some(kept);
+        backward(
+            inputs,
             grad_image,
-            shapes,
+            kept,
+            width,
+            height,
+            &sets,
+            &host_cameras,
             &config,
-            Some(kept),
         )
     }
+}
+
+/// The forward on the device for f32 inputs, on the host path otherwise; with `keep`, every
+/// view as the compositing read it (`None` on the host path, which keeps nothing).
+fn forward(
+    inputs: [CubeTensor; 7],
+    width: u32,
+    height: u32,
+    sets: &ViewSets,
+    host_cameras: &HostCameras,
+    config: &RasterConfig,
+    keep: bool,
+) -> (Forward<CubeBackend>, Option<Vec<Option<ViewRender>>>) {
+    if inputs.iter().any(|t| t.dtype() != DType::F32) {
+        return (
+            host::forward::<CubeBackend>(inputs, width, height, sets, config),
+            None,
+        );
+    }
+    let inp = Inputs::new(inputs, host_cameras, width, height, sets);
+    let (image, radii, counts, kept) = launch::forward(&inp, config, keep);
+    ((image, radii, counts), keep.then_some(kept))
+}
+
+/// The backward on the device for f32 tensors, reusing `kept` where the forward kept it; on
+/// the host path otherwise.
+#[allow(clippy::too_many_arguments)]
+fn backward(
+    inputs: [CubeTensor; 7],
+    grad_image: CubeTensor,
+    kept: Option<Vec<Option<ViewRender>>>,
+    width: u32,
+    height: u32,
+    sets: &ViewSets,
+    host_cameras: &HostCameras,
+    config: &RasterConfig,
+) -> SplatGrads<CubeBackend> {
+    if inputs.iter().any(|t| t.dtype() != DType::F32) || grad_image.dtype() != DType::F32 {
+        return host::backward::<CubeBackend>(inputs, grad_image, width, height, sets, config);
+    }
+    let shapes = inputs.each_ref().map(|t| t.shape());
+    let inp = Inputs::new(inputs, host_cameras, width, height, sets);
+    launch_backward::backward(&inp, grad_image, shapes, config, kept)
 }

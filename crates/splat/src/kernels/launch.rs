@@ -154,11 +154,11 @@ impl Inputs {
 /// One view after projection and the first half of the binning.
 pub(super) struct ViewBins {
     /// The view's Gaussians: `rows` input rows from `first`.
-    pub(super) first: usize,
-    pub(super) rows: usize,
-    pub(super) cam_rec: CubeTensor,
-    pub(super) records: CubeTensor,
-    pub(super) meta: CubeTensor,
+    first: usize,
+    rows: usize,
+    cam_rec: CubeTensor,
+    records: CubeTensor,
+    meta: CubeTensor,
     depth: DepthOrder,
     /// Tile intersections of the view (read back with every other view's).
     intersections: usize,
