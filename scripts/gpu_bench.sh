@@ -12,7 +12,7 @@
 #   PRECISIONS=f32 scripts/gpu_bench.sh           # the forward in f32 only (default f32 f16 bf16)
 #   SKIP_MODEL=1 scripts/gpu_bench.sh             # the rasterizer only
 #   BACKENDS=cuda CUDA=1 scripts/gpu_bench.sh     # one backend only
-#   COMPARE_AT=100000 scripts/gpu_bench.sh        # schedules and backward bins compared here
+#   COMPARE_AT=100000 scripts/gpu_bench.sh        # schedules, bins and gradient adds compared here
 #                                                 # (default 362600; empty: not compared)
 #
 # Each backend runs whole (rasterizer, then model) before the next, CUDA first, and the
@@ -47,8 +47,9 @@ PRECISIONS=${PRECISIONS:-f32 f16 bf16}
 BACKENDS=${BACKENDS:-$DEFAULT_BACKENDS}
 # One scene rendered with both tile schedules of the compositing kernels (`TileSchedule`),
 # each with the backward reusing the forward's tile lists and binning again
-# (`BackwardBins`): the evidence for what `auto` picks on each device, and what keeping the
-# lists saves there.
+# (`BackwardBins`), and the shared batches' backward adding every pixel's gradient or plane
+# sums (`GradCombine`): the evidence for what `auto` picks on each device, and what keeping
+# the lists and summing per plane save there.
 COMPARE_AT=${COMPARE_AT-362600}
 mkdir -p "$OUT"
 export XDG_RUNTIME_DIR="${XDG_RUNTIME_DIR:-$(mktemp -d)}"
@@ -125,10 +126,10 @@ for b in ${BACKENDS//,/ }; do
     || echo "raster bench on $b failed (exit ${PIPESTATUS[0]}; its messages are in the run's log)" | tee -a "$OUT/raster.md.tmp"
   write_table
   if [ -n "$COMPARE_AT" ]; then
-    echo "== tile schedules and backward bins on $b at $COMPARE_AT Gaussians"
-    echo -e "\nTile schedules and backward bins compared:\n" >> "$OUT/raster.md.tmp"
+    echo "== tile schedules, backward bins and gradient adds on $b at $COMPARE_AT Gaussians"
+    echo -e "\nTile schedules, backward bins and gradient adds compared:\n" >> "$OUT/raster.md.tmp"
     "$BIN" --backends "$b" --sizes "$COMPARE_AT" --schedules shared,per-pixel \
-      --backward-bins keep,recompute --no-sort \
+      --backward-bins keep,recompute --grad-adds per-pixel,plane --no-sort \
       --json "$OUT/schedules-$b.json" | tee -a "$OUT/raster.md.tmp" \
       || echo "schedule comparison on $b failed (exit ${PIPESTATUS[0]})" | tee -a "$OUT/raster.md.tmp"
     write_table

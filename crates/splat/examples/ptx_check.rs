@@ -9,15 +9,15 @@
 //! SM is the architecture (90 = Hopper, the default; 80 = Ampere); DIR, when given, gets one
 //! `.ptx` file per kernel. Exit code 1 when any kernel fails to compile.
 
-use cubecl::ir::features::Features;
+use cubecl::ir::features::{Features, Plane};
 use cubecl::ir::nvidia::SmArch;
 use cubecl::ir::{DeviceIdentity, HardwareProperties, MemoryDeviceProperties};
 use cubecl::prelude::*;
 use cubecl::Compiler;
 use cubecl_llvm::nvptx::ptx_version::PtxVersion;
 use cubecl_llvm::{LlvmTarget, PlironArtifact, PlironCompiler, PlironOptions};
-use envision4d_splat::kernels::rasterize_backward::{CasAdd, NativeAdd};
 use envision4d_splat::kernels::rasterize_forward::TILE;
+use envision4d_splat::kernels::splat_grad::{CasAdd, NativeAdd};
 use envision4d_splat::kernels::{
     bin_tiles, camera_grad, project_backward, project_forward, radix_sort, rasterize_backward,
     rasterize_backward_per_pixel, rasterize_forward, rasterize_forward_per_pixel, scan, view_meta,
@@ -39,8 +39,12 @@ fn t() -> TensorCompilationArg {
     }
 }
 
-/// An NVIDIA part as the kernels see it: 32-lane planes, 48 KiB of static shared memory.
+/// An NVIDIA part as the kernels see it: 32-lane planes with plane operations (what CubeCL's
+/// CUDA runtime reports), 48 KiB of static shared memory.
 fn p() -> Arc<DeviceProperties> {
+    let mut features = Features::default();
+    features.plane.insert(Plane::Ops);
+    features.plane.insert(Plane::Sync);
     let hardware = HardwareProperties {
         load_width: 128,
         vector_register_count: None,
@@ -60,7 +64,7 @@ fn p() -> Arc<DeviceProperties> {
         cube_mma_reserved_shared_memory: 0,
     };
     Arc::new(DeviceProperties::new(
-        Features::default(),
+        features,
         MemoryDeviceProperties::new(u64::MAX, 256),
         hardware,
         cubecl::profile::TimingMethod::Device,
@@ -86,19 +90,19 @@ enum Shape {
 fn s(shape: Shape) -> KernelSettings {
     let dim = match shape {
         Shape::Line => CubeDim::new_1d(LINE),
-        Shape::Tile => CubeDim::new_2d(TILE, TILE),
+        Shape::Tile => CubeDim::new_1d(TILE * TILE),
     };
     KernelSettings::new(*dim, ExecutionMode::Checked, AddressType::U32)
 }
 
-/// One kernel to compile: its name, its generated launch struct, its cube shape, and its
-/// runtime parameters in signature order (`T` a tensor, `s` a scalar). Brackets rather than
-/// commas keep the list one line per kernel.
+/// One kernel to compile: its name, its generated launch struct, its cube shape, its
+/// runtime parameters in signature order (`T` a tensor, `s` a scalar), then the values of
+/// its comptime parameters. Brackets rather than commas keep the list one line per kernel.
 macro_rules! kernel {
-    ($name:expr, $kernel:ty, $shape:ident, [$($arg:ident)*]) => {
+    ($name:expr, $kernel:ty, $shape:ident, [$($arg:ident)*] $(, $comptime:expr)*) => {
         (
             $name,
-            Box::new(<$kernel>::new(s(Shape::$shape), p(), tp(), $(arg!($arg)),*))
+            Box::new(<$kernel>::new(s(Shape::$shape), p(), tp(), $(arg!($arg),)* $($comptime),*))
                 as Box<dyn CubeKernel>,
         )
     };
@@ -136,8 +140,10 @@ fn main() {
         kernel!("project_forward", project_forward::project_forward::ProjectForward, Line, [T T T T T T T T s s s s s s s s]),
         kernel!("radix_count", radix_sort::radix_count::RadixCount, Line, [T T s s s]),
         kernel!("radix_scatter", radix_sort::radix_scatter::RadixScatter, Line, [T T T T T s s s]),
-        kernel!("rasterize_backward<NativeAdd>", rasterize_backward::rasterize_backward::RasterizeBackward::<NativeAdd>, Tile, [T T T T T s s s s s s s]),
-        kernel!("rasterize_backward<CasAdd>", rasterize_backward::rasterize_backward::RasterizeBackward::<CasAdd>, Tile, [T T T T T s s s s s s s]),
+        kernel!("rasterize_backward<NativeAdd>", rasterize_backward::rasterize_backward::RasterizeBackward::<NativeAdd>, Tile, [T T T T T s s s s s s s], false),
+        kernel!("rasterize_backward<CasAdd>", rasterize_backward::rasterize_backward::RasterizeBackward::<CasAdd>, Tile, [T T T T T s s s s s s s], false),
+        kernel!("rasterize_backward<NativeAdd, plane sums>", rasterize_backward::rasterize_backward::RasterizeBackward::<NativeAdd>, Tile, [T T T T T s s s s s s s], true),
+        kernel!("rasterize_backward<CasAdd, plane sums>", rasterize_backward::rasterize_backward::RasterizeBackward::<CasAdd>, Tile, [T T T T T s s s s s s s], true),
         kernel!("rasterize_forward", rasterize_forward::rasterize_forward::RasterizeForward, Tile, [T T T T s s s s s s s]),
         kernel!("rasterize_backward_per_pixel<NativeAdd>", rasterize_backward_per_pixel::rasterize_backward_per_pixel::RasterizeBackwardPerPixel::<NativeAdd>, Tile, [T T T T T s s s s s s s]),
         kernel!("rasterize_backward_per_pixel<CasAdd>", rasterize_backward_per_pixel::rasterize_backward_per_pixel::RasterizeBackwardPerPixel::<CasAdd>, Tile, [T T T T T s s s s s s s]),

@@ -71,6 +71,25 @@ pub enum TileSchedule {
     PerPixel,
 }
 
+/// How the units of a tile add a splat's gradient in the GPU backward (results agree to
+/// rounding; the choice is speed only).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum GradCombine {
+    /// Plane sums where CubeCL reports plane operations (every CUDA GPU; wgpu on a card with
+    /// subgroups, never on a software adapter) and the tiles are walked in shared batches;
+    /// per pixel otherwise.
+    #[default]
+    Auto,
+    /// Every pixel's unit adds its own part: one atomic per pixel, splat and lane.
+    PerPixel,
+    /// The units of a plane (warp) sum their parts and one of them adds the sums (gsplat's
+    /// warp sum): a plane's worth fewer atomics, 32-fold on NVIDIA. Applies with shared
+    /// batches only (per pixel, the units walk their lists apart), and needs the device's
+    /// subgroup operations even where CubeCL does not report them (lavapipe has them).
+    PlaneSums,
+}
+
 /// What a GPU forward that will be differentiated keeps for its backward (results agree to
 /// rounding; the choice is memory against time).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
@@ -116,6 +135,10 @@ pub struct RasterConfig {
     /// report).
     #[serde(skip)]
     pub backward_bins: BackwardBins,
+    /// How the GPU backward's units add a splat's gradient (results agree; not part of a
+    /// report).
+    #[serde(skip)]
+    pub grad_combine: GradCombine,
 }
 
 impl Default for RasterConfig {
@@ -132,6 +155,7 @@ impl Default for RasterConfig {
             grad_accumulation: GradAccumulation::Auto,
             tile_schedule: TileSchedule::Auto,
             backward_bins: BackwardBins::Keep,
+            grad_combine: GradCombine::Auto,
         }
     }
 }

@@ -25,7 +25,7 @@ pub mod real;
 
 pub use camera::{Camera, CameraError};
 pub use config::{
-    AlphaClamp, BackwardBins, GradAccumulation, RasterConfig, TileSchedule, TILE_SIZE,
+    AlphaClamp, BackwardBins, GradAccumulation, GradCombine, RasterConfig, TileSchedule, TILE_SIZE,
 };
 pub mod backend;
 pub mod render;

@@ -6,7 +6,9 @@
 //! `scripts/gpu_bench.sh` runs; `cuda` needs `--features envision4d-splat/cuda`).
 //! `--schedules auto,shared,per-pixel` times each tile schedule of the compositing kernels
 //! (`TileSchedule`; default `auto`); `--backward-bins keep,recompute` whether the backward
-//! reuses the forward's tile lists (`BackwardBins`; default `keep`); `--no-sort` skips the sort and scan table; `--kernels`
+//! reuses the forward's tile lists (`BackwardBins`; default `keep`); `--grad-adds
+//! auto,per-pixel,plane` how the backward adds a splat's gradient (`GradCombine`; default
+//! `auto`); every combination is timed. `--no-sort` skips the sort and scan table; `--kernels`
 //! adds, per row, the device time of each kernel of one forward+backward
 //! ([`kernel_times`]).
 //! Prints ms per view and Gaussian-tile pairs per second, then the binning's building blocks
@@ -14,13 +16,15 @@
 //! go to docs/PERFORMANCE.md. Scenes past 362,600 Gaussians take more frames of the street.
 
 mod kernel_times;
+mod variants;
 
+use burn::tensor::Device;
 use burn::tensor::{DType, Int, Tensor, TensorData};
-use burn::tensor::{Device, DeviceKind};
 use envision4d_splat::primitives::{exclusive_scan, sort_pairs};
 use envision4d_splat::testkit::{look_at, HostScene, SplitMix64};
-use envision4d_splat::{render, BackwardBins, Cameras, Gaussians, RasterConfig, TileSchedule};
+use envision4d_splat::{render, Cameras, Gaussians};
 use std::time::{Duration, Instant};
+use variants::{device, variants, Variant};
 
 const W: u32 = 518;
 const H: u32 = 350;
@@ -166,16 +170,7 @@ fn main() {
             .collect(),
         None => vec![10_000, 100_000, full.len()],
     };
-    let schedules: Vec<(&str, TileSchedule)> = arg(&args, "--schedules")
-        .unwrap_or_else(|| "auto".into())
-        .split(',')
-        .map(schedule)
-        .collect();
-    let bins: Vec<(&str, BackwardBins)> = arg(&args, "--backward-bins")
-        .unwrap_or_else(|| "keep".into())
-        .split(',')
-        .map(backward_bins)
-        .collect();
+    let variants = variants(|flag| arg(&args, flag));
     let mut json_rows = Vec::new();
     let sort_devices = devices.clone();
     let kernels = args.iter().any(|a| a == "--kernels");
@@ -188,38 +183,24 @@ fn main() {
     );
     println!("| backend | Gaussians | visible | tile pairs | forward ms/view | fwd+bwd ms/view | fwd pairs/s | fwd+bwd pairs/s |");
     println!("|---|---|---|---|---|---|---|---|");
-    // The CPU path has no tile schedule (it picks GPU kernels) and keeps nothing for its
-    // backward: one row set for it.
+    // The CPU path has none of the GPU knobs (it picks GPU kernels and keeps nothing for
+    // its backward): one row set for it.
     let runs = devices.iter().flat_map(|d| {
-        let (take_s, take_b) = if d.0.starts_with("cpu") {
-            (1, 1)
+        let take = if d.0.starts_with("cpu") {
+            1
         } else {
-            (schedules.len(), bins.len())
+            variants.len()
         };
-        let bins = &bins[..take_b];
-        schedules
-            .iter()
-            .take(take_s)
-            .flat_map(move |s| bins.iter().map(move |b| (d, s, b)))
+        variants.iter().take(take).map(move |v| (d, v))
     });
-    for ((backend, device), &(sched_name, tile_schedule), &(bins_name, backward_bins)) in runs {
-        let cfg = RasterConfig {
-            tile_schedule,
-            backward_bins,
-            ..RasterConfig::default()
-        };
-        let (name, sched_json, bins_json) = if backend.starts_with("cpu") {
-            (backend.to_string(), "null".to_owned(), "null".to_owned())
+    for ((backend, device), variant) in runs {
+        let cfg = variant.config();
+        let (name, knobs) = if backend.starts_with("cpu") {
+            (backend.to_string(), Variant::json(None))
         } else {
-            // Rows of the default (`keep`) carry only the schedule, as before the flag.
-            let bins_label = match backward_bins {
-                BackwardBins::Keep => String::new(),
-                BackwardBins::Recompute => format!(", {bins_name}"),
-            };
             (
-                format!("{backend} ({sched_name}{bins_label})"),
-                format!("\"{sched_name}\""),
-                format!("\"{bins_name}\""),
+                format!("{backend} ({})", variant.label()),
+                Variant::json(Some(variant)),
             )
         };
         for &n in sizes.iter().filter(|n| **n <= max_n) {
@@ -253,16 +234,16 @@ fn main() {
                 });
                 for k in &rows {
                     json_rows.push(format!(
-                        "{{\"kind\":\"kernel\",\"backend\":\"{backend}\",\"schedule\":{sched_json},\
-                         \"backward_bins\":{bins_json},\"gaussians\":{n},\"kernel\":\"{}\",\"launches\":{},\"total_ms\":{:.4}}}",
+                        "{{\"kind\":\"kernel\",\"backend\":\"{backend}\",{knobs},\
+                         \"gaussians\":{n},\"kernel\":\"{}\",\"launches\":{},\"total_ms\":{:.4}}}",
                         k.name, k.launches, k.total_ms
                     ));
                 }
                 kernel_tables.push((format!("{name}, {n} Gaussians"), rows, method));
             }
             json_rows.push(format!(
-                "{{\"kind\":\"raster\",\"backend\":\"{backend}\",\"schedule\":{sched_json},\
-                 \"backward_bins\":{bins_json},\"gaussians\":{n},\"visible\":{},\"tile_pairs\":{},\"forward_ms\":{:.3},\"fwd_bwd_ms\":{:.3}}}",
+                "{{\"kind\":\"raster\",\"backend\":\"{backend}\",{knobs},\
+                 \"gaussians\":{n},\"visible\":{},\"tile_pairs\":{},\"forward_ms\":{:.3},\"fwd_bwd_ms\":{:.3}}}",
                 counts[0],
                 counts[1],
                 fwd.as_secs_f64() * 1e3,
@@ -352,38 +333,6 @@ fn arg(args: &[String], name: &str) -> Option<String> {
     args.iter()
         .position(|a| a == name)
         .and_then(|i| args.get(i + 1).cloned())
-}
-
-/// A name of `--backward-bins` as what the forward keeps for the backward.
-fn backward_bins(name: &str) -> (&'static str, BackwardBins) {
-    match name {
-        "keep" => ("keep", BackwardBins::Keep),
-        "recompute" => ("recompute", BackwardBins::Recompute),
-        other => panic!("--backward-bins: {other} is not keep or recompute"),
-    }
-}
-
-/// A name of `--schedules` as its tile schedule.
-fn schedule(name: &str) -> (&'static str, TileSchedule) {
-    match name {
-        "auto" => ("auto", TileSchedule::Auto),
-        "shared" => ("shared", TileSchedule::SharedBatches),
-        "per-pixel" => ("per pixel", TileSchedule::PerPixel),
-        other => panic!("--schedules: {other} is not a tile schedule (auto, shared, per-pixel)"),
-    }
-}
-
-/// A backend name of `--backends` as its device.
-fn device(name: &str) -> (&'static str, Device) {
-    match name {
-        "cpu" => ("cpu (burn-flex + rayon)", Device::flex()),
-        "wgpu" => ("wgpu", Device::wgpu(DeviceKind::DefaultDevice)),
-        #[cfg(feature = "cuda")]
-        "cuda" => ("cuda", Device::cuda(0)),
-        other => {
-            panic!("--backends: {other} is not built in (cpu, wgpu, cuda with --features cuda)")
-        }
-    }
 }
 
 /// `n` Gaussians of the street: a random subset of the two-frame scene, or of as many

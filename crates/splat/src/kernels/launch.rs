@@ -326,9 +326,12 @@ pub(super) fn shared_batches(like: &CubeTensor, schedule: TileSchedule) -> bool 
     }
 }
 
+/// One cube per tile, one unit per pixel. The cube is one-dimensional (unit = row x
+/// [`TILE`] + column): WGSL has subgroup ids only in one-dimensional workgroups, and the
+/// backward's plane sums need them.
 pub(super) fn tile_grid(inp: &Inputs) -> (CubeCount, CubeDim) {
     let (tx, ty) = (inp.width.div_ceil(TILE), inp.height.div_ceil(TILE));
-    (CubeCount::Static(tx, ty, 1), CubeDim::new_2d(TILE, TILE))
+    (CubeCount::Static(tx, ty, 1), CubeDim::new_1d(TILE * TILE))
 }
 
 pub(super) fn view_offset(inp: &Inputs, v: usize) -> u32 {

@@ -11,10 +11,11 @@ use super::launch::{
 };
 use super::project_backward::{project_backward, CAM_GRAD_LANES};
 use super::project_forward::RECORD_LANES;
-use super::rasterize_backward::{rasterize_backward, CasAdd, NativeAdd};
+use super::rasterize_backward::rasterize_backward;
 use super::rasterize_backward_per_pixel::rasterize_backward_per_pixel;
+use super::splat_grad::{CasAdd, NativeAdd};
 use crate::backend::SplatGrads;
-use crate::config::RasterConfig;
+use crate::config::{GradCombine, RasterConfig};
 use burn::backend::ops::FloatTensorOps;
 use burn::backend::tensor::FloatTensor;
 use burn::tensor::{DType, Shape};
@@ -22,7 +23,7 @@ use burn_cubecl::kernel::into_contiguous;
 use burn_cubecl::ops::numeric::empty_device_dtype;
 use burn_cubecl::tensor::CubeTensor;
 use burn_cubecl::CubeBackend;
-use cubecl::features::AtomicUsage;
+use cubecl::features::{AtomicUsage, Plane};
 use cubecl::ir::{ElemType, FloatKind, Type};
 use cubecl::{calculate_cube_count_elemwise, CubeCount, CubeDim};
 
@@ -31,6 +32,18 @@ fn has_float_atomic_add(t: &CubeTensor) -> bool {
         .properties()
         .atomic_type_usage(Type::atomic(ElemType::Float(FloatKind::F32)))
         .contains(AtomicUsage::Add)
+}
+
+/// Whether the batched backward sums each splat's gradient over a plane before adding it
+/// ([`GradCombine`]; `Auto` where the device reports plane operations); never with the
+/// per-pixel schedule, whose units walk their lists apart.
+fn plane_sums(combine: GradCombine, batched: bool, plane_ops: bool) -> bool {
+    batched
+        && match combine {
+            GradCombine::PlaneSums => true,
+            GradCombine::PerPixel => false,
+            GradCombine::Auto => plane_ops,
+        }
 }
 
 /// `splat_backward` on the GPU; `shapes` are the seven input shapes for the outputs. `kept`
@@ -55,6 +68,8 @@ pub fn backward(
     let native = has_float_atomic_add(&inp.means)
         && cfg.grad_accumulation != crate::config::GradAccumulation::CompareAndSwap;
     let batched = shared_batches(&inp.means, cfg.tile_schedule);
+    let plane_ops = (inp.means.client.properties().features.plane).contains(Plane::Ops);
+    let plane = plane_sums(cfg.grad_combine, batched, plane_ops);
     let views = kept.unwrap_or_else(|| {
         let binned = project_and_bin_all(inp, cfg).into_iter().enumerate();
         binned
@@ -66,29 +81,35 @@ pub fn backward(
             let (first, n, bins) = (vb.first, vb.rows, vb.bins);
             let v_proj = zeros(&inp.means, n * RECORD_LANES);
             let (count, dim) = tile_grid(inp);
-            let launch = match (native, batched) {
-                (true, true) => rasterize_backward::launch::<NativeAdd>,
-                (false, true) => rasterize_backward::launch::<CasAdd>,
-                (true, false) => rasterize_backward_per_pixel::launch::<NativeAdd>,
-                (false, false) => rasterize_backward_per_pixel::launch::<CasAdd>,
-            };
-            launch(
-                &inp.means.client,
-                count,
-                dim,
-                vb.records.into_tensor_arg(),
-                bins.tile_start.into_tensor_arg(),
-                bins.items.into_tensor_arg(),
-                grad_image.clone().into_tensor_arg(),
-                v_proj.clone().into_tensor_arg(),
-                inp.width,
-                inp.height,
-                inp.cams[v].tiles_x(),
-                view_offset(inp, v),
-                cfg.alpha_min as f32,
-                cfg.alpha_clamp.max_alpha() as f32,
-                cfg.transmittance_min as f32,
-            );
+            // The four kernels take the same arguments; the batched one also its plane flag.
+            macro_rules! composite {
+                ($kernel:ident::<$add:ty>($($plane:expr)?)) => {
+                    $kernel::launch::<$add>(
+                        &inp.means.client,
+                        count,
+                        dim,
+                        vb.records.into_tensor_arg(),
+                        bins.tile_start.into_tensor_arg(),
+                        bins.items.into_tensor_arg(),
+                        grad_image.clone().into_tensor_arg(),
+                        v_proj.clone().into_tensor_arg(),
+                        inp.width,
+                        inp.height,
+                        inp.cams[v].tiles_x(),
+                        view_offset(inp, v),
+                        cfg.alpha_min as f32,
+                        cfg.alpha_clamp.max_alpha() as f32,
+                        cfg.transmittance_min as f32,
+                        $($plane)?
+                    )
+                };
+            }
+            match (native, batched) {
+                (true, true) => composite!(rasterize_backward::<NativeAdd>(plane)),
+                (false, true) => composite!(rasterize_backward::<CasAdd>(plane)),
+                (true, false) => composite!(rasterize_backward_per_pixel::<NativeAdd>()),
+                (false, false) => composite!(rasterize_backward_per_pixel::<CasAdd>()),
+            }
             let cam_part = empty_device_dtype(
                 inp.means.client.clone(),
                 inp.means.device.clone(),
@@ -146,5 +167,30 @@ pub fn backward(
         colors: CubeBackend::float_reshape(g_colors, s_c),
         viewmats: CubeBackend::float_reshape(g_viewmats, s_v),
         ks: CubeBackend::float_reshape(g_ks, s_k),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::plane_sums;
+    use crate::config::GradCombine::{Auto, PerPixel, PlaneSums};
+
+    /// Guards the gradient-add choice: plane sums never under the per-pixel schedule (its
+    /// units are not at the same splat, so a plane sum would mix splats), `Auto` exactly
+    /// where the device reports plane operations, the explicit modes as asked.
+    #[test]
+    fn plane_sums_only_with_shared_batches() {
+        for combine in [Auto, PerPixel, PlaneSums] {
+            for plane_ops in [false, true] {
+                assert!(
+                    !plane_sums(combine, false, plane_ops),
+                    "{combine:?}, per pixel"
+                );
+            }
+        }
+        assert!(plane_sums(Auto, true, true));
+        assert!(!plane_sums(Auto, true, false));
+        assert!(plane_sums(PlaneSums, true, false));
+        assert!(!plane_sums(PerPixel, true, true));
     }
 }

@@ -38,4 +38,5 @@ pub mod rasterize_forward_per_pixel;
 pub mod readback;
 pub mod scan;
 pub mod sort;
+pub mod splat_grad;
 pub mod view_meta;

@@ -9,187 +9,15 @@
 //! reverse pass starts at the furthest end any pixel of the tile reached. Units without a
 //! pixel or without an upstream gradient take part in the loads and add nothing.
 //! [`super::rasterize_backward_per_pixel`] is the same without shared memory, for a software
-//! adapter ([`crate::config::TileSchedule`]); both add a splat's gradient with
-//! [`reverse_step()`].
-//! Lane order: mean2d (x, y), conic (q00, q01, q11), opacity, colour (r, g, b), depth.
+//! adapter ([`crate::config::TileSchedule`]). Both compute a splat's gradient with
+//! [`super::splat_grad::splat_grad()`]; with `plane_sums` the units of a plane sum theirs
+//! before one atomic add per lane ([`crate::config::GradCombine`]).
 
-use super::project_forward::RECORD_LANES;
 use super::rasterize_forward::{
-    eval_batched, load_batch, tile_pixel, Eval, BATCH, BATCH_SHARED, SHARED_LANES, TILE,
+    eval_batched, load_batch, tile_pixel, BATCH, BATCH_SHARED, SHARED_LANES,
 };
+use super::splat_grad::{plane_step, reverse_step, shade_of_batch, Behind, GradAdd, Upstream};
 use cubecl::prelude::*;
-
-/// How a gradient lane is added to the shared buffer: a native float atomic where the device
-/// has one, otherwise a compare-and-swap loop on the u32 bit pattern.
-#[cube]
-pub trait GradAdd: Send + Sync + 'static {
-    type Proxy: Numeric;
-    fn add(slot: &mut Atomic<Self::Proxy>, value: f32);
-}
-
-/// Native `Atomic<f32>::fetch_add`.
-#[derive(CubeType)]
-pub struct NativeAdd;
-
-/// CAS fallback for devices without float atomics.
-#[derive(CubeType)]
-pub struct CasAdd;
-
-#[cube]
-impl GradAdd for NativeAdd {
-    type Proxy = f32;
-
-    fn add(slot: &mut Atomic<f32>, value: f32) {
-        slot.fetch_add(value);
-    }
-}
-
-#[cube]
-impl GradAdd for CasAdd {
-    type Proxy = u32;
-
-    fn add(slot: &mut Atomic<u32>, value: f32) {
-        // Adding zero changes nothing; skipping it saves a round trip.
-        if value != 0.0f32 {
-            let mut bits = slot.load();
-            loop {
-                let seen = bits;
-                let new = (f32::from_bits(seen) + value).to_bits();
-                bits = slot.compare_exchange_weak(seen, new);
-                if bits == seen {
-                    break;
-                }
-            }
-        }
-    }
-}
-
-/// A pixel's upstream gradient, one per output channel, and its final transmittance.
-#[derive(CubeType, Clone, Copy)]
-#[expand(derive(Clone, Copy))]
-pub struct Upstream {
-    pub r: f32,
-    pub g: f32,
-    pub b: f32,
-    pub d: f32,
-    pub a: f32,
-    pub t_final: f32,
-}
-
-/// The reverse pass's running state at a pixel: the transmittance in front of the next
-/// splat, and the colour and depth composited behind it.
-#[derive(CubeType)]
-pub struct Behind {
-    pub t: f32,
-    pub r: f32,
-    pub g: f32,
-    pub b: f32,
-    pub d: f32,
-}
-
-#[cube]
-impl Behind {
-    /// Nothing behind yet, transmittance `t_final`: the state past the last composited splat.
-    pub fn new(t_final: f32) -> Behind {
-        Behind {
-            t: t_final,
-            r: 0.0f32,
-            g: 0.0f32,
-            b: 0.0f32,
-            d: 0.0f32,
-        }
-    }
-}
-
-/// The record lanes the gradient reads besides the evaluation: conic, opacity, colour, depth.
-#[derive(CubeType, Clone, Copy)]
-#[expand(derive(Clone, Copy))]
-pub struct Shade {
-    pub q00: f32,
-    pub q01: f32,
-    pub q11: f32,
-    pub opacity: f32,
-    pub r: f32,
-    pub g: f32,
-    pub b: f32,
-    pub d: f32,
-}
-
-/// The [`Shade`] of the batched record at `s`.
-#[cube]
-pub fn shade_of_batch(batch: &[f32], s: usize) -> Shade {
-    Shade {
-        q00: batch[s + 2],
-        q01: batch[s + 3],
-        q11: batch[s + 4],
-        opacity: batch[s + 5],
-        r: batch[s + 6],
-        g: batch[s + 7],
-        b: batch[s + 8],
-        d: batch[s + 9],
-    }
-}
-
-/// The [`Shade`] of the record at `rec` in global memory.
-#[cube]
-pub fn shade_of_record(records: &Tensor<f32>, rec: usize) -> Shade {
-    Shade {
-        q00: records[rec + 2],
-        q01: records[rec + 3],
-        q11: records[rec + 4],
-        opacity: records[rec + 5],
-        r: records[rec + 6],
-        g: records[rec + 7],
-        b: records[rec + 8],
-        d: records[rec + 9],
-    }
-}
-
-/// One splat of the reverse pass (composited, evaluation `e`): adds its gradient lanes into
-/// Gaussian `id`'s row of `v_proj` and steps `state` in front of it. Both backward kernels
-/// come here, so their formulas cannot diverge.
-#[cube]
-pub fn reverse_step<A: GradAdd>(
-    v_proj: &mut Tensor<Atomic<A::Proxy>>,
-    id: usize,
-    e: Eval,
-    sh: Shade,
-    up: Upstream,
-    state: &mut Behind,
-    alpha_max: f32,
-) {
-    let one_minus = 1.0f32 - e.alpha;
-    let t_i = state.t / one_minus;
-    let fac = e.alpha * t_i;
-    let lane = id * RECORD_LANES;
-    A::add(&mut v_proj[lane + 6], fac * up.r);
-    A::add(&mut v_proj[lane + 7], fac * up.g);
-    A::add(&mut v_proj[lane + 8], fac * up.b);
-    A::add(&mut v_proj[lane + 9], fac * up.d);
-    let mut v_alpha = up.a * up.t_final / one_minus;
-    v_alpha += up.r * (sh.r * t_i - state.r / one_minus);
-    v_alpha += up.g * (sh.g * t_i - state.g / one_minus);
-    v_alpha += up.b * (sh.b * t_i - state.b / one_minus);
-    v_alpha += up.d * (sh.d * t_i - state.d / one_minus);
-    // When the clamp is active alpha no longer depends on opacity or geometry.
-    if sh.opacity * e.vis <= alpha_max {
-        let v_sigma = (0.0f32 - sh.opacity) * e.vis * v_alpha;
-        A::add(&mut v_proj[lane], v_sigma * (sh.q00 * e.dx + sh.q01 * e.dy));
-        A::add(
-            &mut v_proj[lane + 1],
-            v_sigma * (sh.q01 * e.dx + sh.q11 * e.dy),
-        );
-        A::add(&mut v_proj[lane + 2], 0.5f32 * e.dx * e.dx * v_sigma);
-        A::add(&mut v_proj[lane + 3], e.dx * e.dy * v_sigma);
-        A::add(&mut v_proj[lane + 4], 0.5f32 * e.dy * e.dy * v_sigma);
-        A::add(&mut v_proj[lane + 5], e.vis * v_alpha);
-    }
-    state.r += sh.r * fac;
-    state.g += sh.g * fac;
-    state.b += sh.b * fac;
-    state.d += sh.d * fac;
-    state.t = t_i;
-}
 
 #[cube(launch)]
 #[allow(clippy::too_many_arguments)]
@@ -206,9 +34,10 @@ pub fn rasterize_backward<A: GradAdd>(
     alpha_min: f32,
     alpha_max: f32,
     t_min: f32,
+    #[comptime] plane_sums: bool,
 ) {
     let pix = tile_pixel(tile_start, width, height, tiles_x, view_offset);
-    let unit = (UNIT_POS_Y * TILE + UNIT_POS_X) as usize;
+    let unit = UNIT_POS as usize;
     let inside = pix.inside;
     let mut g_r = 0.0f32;
     let mut g_g = 0.0f32;
@@ -314,8 +143,20 @@ pub fn rasterize_backward<A: GradAdd>(
             records, items, &mut batch, &mut ids, first, top, unit, alpha_min,
         );
         sync_cube();
-        if active {
-            let count = top - first;
+        let count = top - first;
+        if plane_sums {
+            // Every unit walks the batch (the plane sums need them all); those whose pixel
+            // did not composite a splat add zero to its sums.
+            for j in 0..count {
+                let k = top - 1 - j;
+                let s = (k - first) as usize * SHARED_LANES;
+                let e = eval_batched(&batch, s, px, py, alpha_min, alpha_max);
+                let composited = active && k < last && !e.skip;
+                let id = ids[(k - first) as usize] as usize;
+                let shade = shade_of_batch(&batch, s);
+                plane_step::<A>(v_proj, id, composited, e, shade, up, &mut state, alpha_max);
+            }
+        } else if active {
             for j in 0..count {
                 let k = top - 1 - j;
                 if k < last {

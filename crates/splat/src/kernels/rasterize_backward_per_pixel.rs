@@ -9,8 +9,8 @@
 //! [`eval_splat()`]'s, which decide as the batched early reject does.
 
 use super::project_forward::RECORD_LANES;
-use super::rasterize_backward::{reverse_step, shade_of_record, Behind, GradAdd, Upstream};
 use super::rasterize_forward::{eval_splat, tile_pixel};
+use super::splat_grad::{reverse_step, shade_of_record, Behind, GradAdd, Upstream};
 use cubecl::prelude::*;
 
 #[cube(launch)]

@@ -175,8 +175,9 @@ pub fn tile_pixel(
     tiles_x: u32,
     view_offset: u32,
 ) -> TilePixel {
-    let x = CUBE_POS_X * TILE + UNIT_POS_X;
-    let y = CUBE_POS_Y * TILE + UNIT_POS_Y;
+    // Cubes are one-dimensional (WGSL offers subgroup ids only there): unit = row * TILE + col.
+    let x = CUBE_POS_X * TILE + UNIT_POS % TILE;
+    let y = CUBE_POS_Y * TILE + UNIT_POS / TILE;
     let tile = (CUBE_POS_Y * tiles_x + CUBE_POS_X) as usize;
     TilePixel {
         inside: x < width && y < height,
@@ -204,7 +205,7 @@ pub fn rasterize_forward(
     t_min: f32,
 ) {
     let pix = tile_pixel(tile_start, width, height, tiles_x, view_offset);
-    let unit = (UNIT_POS_Y * TILE + UNIT_POS_X) as usize;
+    let unit = UNIT_POS as usize;
     let (inside, start, end, px, py) = (pix.inside, pix.start, pix.end, pix.px, pix.py);
 
     let mut batch = Shared::<[f32]>::new_slice(BATCH_SHARED);

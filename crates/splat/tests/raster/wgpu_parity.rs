@@ -11,7 +11,8 @@ use envision4d_splat::testkit::{
     intrinsics, look_at, random_scene, wgpu_test_device, HostScene, SceneSpec, SplitMix64,
 };
 use envision4d_splat::{
-    render, BackwardBins, Cameras, Gaussians, GradAccumulation, RasterConfig, TileSchedule,
+    render, BackwardBins, Cameras, Gaussians, GradAccumulation, GradCombine, RasterConfig,
+    TileSchedule,
 };
 
 /// Image tolerance (absolute for colour and alpha, relative for the accumulated depth).
@@ -160,17 +161,34 @@ pub(crate) fn check_parity(
     let b = run(&Device::flex(), scene, views, w, h, cfg, &wts);
     let runs = match cfg.tile_schedule {
         TileSchedule::Auto => vec![
-            (TileSchedule::SharedBatches, BackwardBins::Keep),
-            (TileSchedule::PerPixel, BackwardBins::Recompute),
+            (
+                TileSchedule::SharedBatches,
+                BackwardBins::Keep,
+                GradCombine::PlaneSums,
+            ),
+            (
+                TileSchedule::SharedBatches,
+                BackwardBins::Recompute,
+                GradCombine::PerPixel,
+            ),
+            (
+                TileSchedule::PerPixel,
+                BackwardBins::Recompute,
+                GradCombine::Auto,
+            ),
         ],
-        one => vec![(one, cfg.backward_bins)],
+        one => vec![(one, cfg.backward_bins, cfg.grad_combine)],
     };
     let mut worst = 0.0f64;
-    for (tile_schedule, backward_bins) in runs {
-        eprintln!("tile schedule {tile_schedule:?}, backward bins {backward_bins:?}:");
+    for (tile_schedule, backward_bins, grad_combine) in runs {
+        eprintln!(
+            "tile schedule {tile_schedule:?}, backward bins {backward_bins:?}, \
+             gradient adds {grad_combine:?}:"
+        );
         let cfg = RasterConfig {
             tile_schedule,
             backward_bins,
+            grad_combine,
             ..*cfg
         };
         let a = run(&gpu, scene, views, w, h, &cfg, &wts);
