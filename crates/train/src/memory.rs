@@ -292,10 +292,13 @@ pub const KEPT_BYTES_PER_GAUSSIAN: f64 = 64.0;
 /// 216 842 for 94 697 in the raster bench's street scene (`docs/PERFORMANCE.md`). The only
 /// part of the kept bytes that depends on the scene.
 pub const KEPT_INTERSECTIONS_PER_GAUSSIAN: f64 = 2.3;
+/// Bytes the GPU forward keeps per pixel of every rendered view: its final transmittance
+/// and last composited item, so the backward needs no replay of the compositing.
+pub const KEPT_BYTES_PER_PIXEL: f64 = 8.0;
 
 /// What the GPU rasterizer holds from a step's forward to its backward: every rendered view
 /// (B x (T_c + T_f)) renders at most the T_c context frames' per-pixel Gaussians
-/// (self-exclusive views fewer), so a bound. 0 with `[run] recompute_raster_bins` and in the
+/// (self-exclusive views fewer), so a bound; plus where each of its pixels stopped. 0 with `[run] recompute_raster_bins` and in the
 /// backbone stage, which renders nothing.
 pub fn raster_bins(cfg: &TrainConfig) -> f64 {
     if cfg.run.recompute_raster_bins || cfg.stage == Stage::Backbone {
@@ -304,8 +307,11 @@ pub fn raster_bins(cfg: &TrainConfig) -> f64 {
     let m = &cfg.model;
     let [h, w] = m.image_size;
     let views = (cfg.optim.batch_size * m.num_frames()) as f64;
-    let gaussians = (m.context_frames * h * w) as f64;
-    views * gaussians * (KEPT_BYTES_PER_GAUSSIAN + 4.0 * KEPT_INTERSECTIONS_PER_GAUSSIAN)
+    let pixels = (h * w) as f64;
+    let gaussians = m.context_frames as f64 * pixels;
+    views
+        * (gaussians * (KEPT_BYTES_PER_GAUSSIAN + 4.0 * KEPT_INTERSECTIONS_PER_GAUSSIAN)
+            + pixels * KEPT_BYTES_PER_PIXEL)
 }
 
 /// [`estimate_with`] the [`FITTED`] coefficients.

@@ -13,7 +13,7 @@ use super::project_forward::{project_forward, META_LANES, RECORD_LANES};
 use super::rasterize_forward::{rasterize_forward, OUT_CHANNELS, TILE};
 use super::rasterize_forward_per_pixel::rasterize_forward_per_pixel;
 use super::readback::read_u32s;
-use super::sort::retype;
+use super::sort::{empty_u32, retype};
 use super::view_meta::{view_counts, view_radii};
 use crate::camera::Camera;
 use crate::config::{RasterConfig, TileSchedule};
@@ -184,6 +184,7 @@ impl ViewBins {
             records: self.records,
             meta: self.meta,
             bins,
+            ends: None,
         })
     }
 }
@@ -366,6 +367,9 @@ pub fn forward(
     if keep {
         kept.resize_with(v_count, || None);
     }
+    // Where every pixel stopped, for a backward that then needs no replay (8 bytes per
+    // pixel and view); a forward that keeps nothing writes none (one unused word).
+    let ends = empty_u32(&inp.means, if keep { v_count * h * w * 2 } else { 1 });
     for (v, vb) in project_and_bin_all(inp, cfg).into_iter().enumerate() {
         let Some(vb) = vb else {
             continue;
@@ -383,6 +387,7 @@ pub fn forward(
             view.bins.tile_start.clone().into_tensor_arg(),
             view.bins.items.clone().into_tensor_arg(),
             image.clone().into_tensor_arg(),
+            ends.clone().into_tensor_arg(),
             inp.width,
             inp.height,
             inp.cams[v].tiles_x(),
@@ -390,9 +395,13 @@ pub fn forward(
             cfg.alpha_min as f32,
             cfg.alpha_clamp.max_alpha() as f32,
             cfg.transmittance_min as f32,
+            keep,
         );
         if keep {
-            kept[v] = Some(view);
+            kept[v] = Some(ViewRender {
+                ends: Some(ends.clone()),
+                ..view
+            });
         }
     }
     let image = CubeBackend::float_reshape(image, Shape::new([v_count, h, w, OUT_CHANNELS]));

@@ -13,6 +13,7 @@ use super::project_backward::{project_backward, CAM_GRAD_LANES};
 use super::project_forward::RECORD_LANES;
 use super::rasterize_backward::rasterize_backward;
 use super::rasterize_backward_per_pixel::rasterize_backward_per_pixel;
+use super::sort::empty_u32;
 use super::splat_grad::{CasAdd, NativeAdd};
 use crate::backend::SplatGrads;
 use crate::config::{GradCombine, RasterConfig};
@@ -79,6 +80,9 @@ pub fn backward(
     for (v, view) in views.into_iter().enumerate() {
         if let Some(vb) = view {
             let (first, n, bins) = (vb.first, vb.rows, vb.bins);
+            // Without the forward's ends the kernels replay its compositing (one unused word).
+            let replay = vb.ends.is_none();
+            let ends = vb.ends.unwrap_or_else(|| empty_u32(&inp.means, 1));
             let v_proj = zeros(&inp.means, n * RECORD_LANES);
             let (count, dim) = tile_grid(inp);
             // The four kernels take the same arguments; the batched one also its plane flag.
@@ -92,6 +96,7 @@ pub fn backward(
                         bins.tile_start.into_tensor_arg(),
                         bins.items.into_tensor_arg(),
                         grad_image.clone().into_tensor_arg(),
+                        ends.into_tensor_arg(),
                         v_proj.clone().into_tensor_arg(),
                         inp.width,
                         inp.height,
@@ -100,6 +105,7 @@ pub fn backward(
                         cfg.alpha_min as f32,
                         cfg.alpha_clamp.max_alpha() as f32,
                         cfg.transmittance_min as f32,
+                        replay,
                         $($plane)?
                     )
                 };

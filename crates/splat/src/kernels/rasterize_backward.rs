@@ -26,6 +26,7 @@ pub fn rasterize_backward<A: GradAdd>(
     tile_start: &Tensor<u32>,
     items: &Tensor<u32>,
     grad_image: &Tensor<f32>,
+    ends: &Tensor<u32>,
     v_proj: &mut Tensor<Atomic<A::Proxy>>,
     width: u32,
     height: u32,
@@ -34,6 +35,7 @@ pub fn rasterize_backward<A: GradAdd>(
     alpha_min: f32,
     alpha_max: f32,
     t_min: f32,
+    #[comptime] replay: bool,
     #[comptime] plane_sums: bool,
 ) {
     let pix = tile_pixel(tile_start, width, height, tiles_x, view_offset);
@@ -67,53 +69,61 @@ pub fn rasterize_backward<A: GradAdd>(
     }
     sync_cube();
 
-    // Pass 1: replay the forward to get T_final and one past the last composited item.
-    let mut done = !active;
-    if done {
-        finished[0].fetch_add(1u32);
-    }
+    // Pass 1: the pixel's final transmittance and one past its last composited item, as the
+    // forward left them (`ends`, kept with the tile lists) or replayed here.
     let mut t = 1.0f32;
     let mut last = start;
-    let mut base = start;
-    while base < end {
-        load_batch(
-            records, items, &mut batch, &mut ids, base, end, unit, alpha_min,
-        );
-        sync_cube();
-        if !done {
-            let mut count = end - base;
-            if count > BATCH {
-                count = BATCH;
-            }
-            for j in 0..count {
-                let e = eval_batched(
-                    &batch,
-                    j as usize * SHARED_LANES,
-                    px,
-                    py,
-                    alpha_min,
-                    alpha_max,
-                );
-                if !e.skip {
-                    let next_t = t * (1.0f32 - e.alpha);
-                    if next_t <= t_min {
-                        done = true;
-                        break;
+    if replay {
+        let mut done = !active;
+        if done {
+            finished[0].fetch_add(1u32);
+        }
+        let mut base = start;
+        while base < end {
+            load_batch(
+                records, items, &mut batch, &mut ids, base, end, unit, alpha_min,
+            );
+            sync_cube();
+            if !done {
+                let mut count = end - base;
+                if count > BATCH {
+                    count = BATCH;
+                }
+                for j in 0..count {
+                    let e = eval_batched(
+                        &batch,
+                        j as usize * SHARED_LANES,
+                        px,
+                        py,
+                        alpha_min,
+                        alpha_max,
+                    );
+                    if !e.skip {
+                        let next_t = t * (1.0f32 - e.alpha);
+                        if next_t <= t_min {
+                            done = true;
+                            break;
+                        }
+                        t = next_t;
+                        last = base + j + 1;
                     }
-                    t = next_t;
-                    last = base + j + 1;
+                }
+                if done {
+                    finished[0].fetch_add(1u32);
                 }
             }
-            if done {
-                finished[0].fetch_add(1u32);
+            base += BATCH;
+            // As in the forward kernel: on CUDA the uniform load is a barrier then the load, so
+            // a write to `finished` must wait for the next `sync_cube` (the batch and `furthest`
+            // may be written at once: their readers met the barrier before the load).
+            if workgroup_uniform_load_atomic(&finished[0]) == BATCH {
+                break;
             }
         }
-        base += BATCH;
-        // As in the forward kernel: on CUDA the uniform load is a barrier then the load, so
-        // a write to `finished` must wait for the next `sync_cube` (the batch and `furthest`
-        // may be written at once: their readers met the barrier before the load).
-        if workgroup_uniform_load_atomic(&finished[0]) == BATCH {
-            break;
+    } else {
+        if active {
+            t = f32::from_bits(ends[2 * pix.pixel]);
+            last = ends[2 * pix.pixel + 1];
         }
     }
     let t_final = t;

@@ -20,6 +20,7 @@ pub fn rasterize_backward_per_pixel<A: GradAdd>(
     tile_start: &Tensor<u32>,
     items: &Tensor<u32>,
     grad_image: &Tensor<f32>,
+    ends: &Tensor<u32>,
     v_proj: &mut Tensor<Atomic<A::Proxy>>,
     width: u32,
     height: u32,
@@ -28,6 +29,7 @@ pub fn rasterize_backward_per_pixel<A: GradAdd>(
     alpha_min: f32,
     alpha_max: f32,
     t_min: f32,
+    #[comptime] replay: bool,
 ) {
     let pix = tile_pixel(tile_start, width, height, tiles_x, view_offset);
     // Partial edge tiles: units without a pixel have nothing to do and no barrier to meet.
@@ -48,20 +50,26 @@ pub fn rasterize_backward_per_pixel<A: GradAdd>(
     }
     let (start, end, px, py) = (pix.start, pix.end, pix.px, pix.py);
 
-    // Pass 1: replay the forward to get T_final and one past the last composited item.
+    // Pass 1: the final transmittance and one past the last composited item, as the forward
+    // left them (`ends`, kept with the tile lists) or replayed here.
     let mut t = 1.0f32;
     let mut last = start;
-    for k in start..end {
-        let rec = items[k as usize] as usize * RECORD_LANES;
-        let e = eval_splat(records, rec, px, py, alpha_min, alpha_max);
-        if !e.skip {
-            let next_t = t * (1.0f32 - e.alpha);
-            if next_t <= t_min {
-                break;
+    if replay {
+        for k in start..end {
+            let rec = items[k as usize] as usize * RECORD_LANES;
+            let e = eval_splat(records, rec, px, py, alpha_min, alpha_max);
+            if !e.skip {
+                let next_t = t * (1.0f32 - e.alpha);
+                if next_t <= t_min {
+                    break;
+                }
+                t = next_t;
+                last = k + 1;
             }
-            t = next_t;
-            last = k + 1;
         }
+    } else {
+        t = f32::from_bits(ends[2 * pix.pixel]);
+        last = ends[2 * pix.pixel + 1];
     }
 
     // Pass 2: back to front from `last`; every non-skipped item before it was composited.

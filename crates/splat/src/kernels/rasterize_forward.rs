@@ -152,7 +152,8 @@ pub fn eval_batched(
 }
 
 /// Where a unit of a tile cube draws: its pixel, the pixel centre, the pixel's first output
-/// lane in the image batch, and the tile's item range `[start, end)` in the CSR lists.
+/// lane in the image batch and its index among the batch's pixels (`pixel`, that lane over
+/// [`OUT_CHANNELS`]), and the tile's item range `[start, end)` in the CSR lists.
 /// `inside` is false for the units of a partial edge tile past the image (their `out` is
 /// meaningless and must not be used).
 #[derive(CubeType, Clone, Copy)]
@@ -162,6 +163,7 @@ pub struct TilePixel {
     pub px: f32,
     pub py: f32,
     pub out: usize,
+    pub pixel: usize,
     pub start: u32,
     pub end: u32,
 }
@@ -179,11 +181,13 @@ pub fn tile_pixel(
     let x = CUBE_POS_X * TILE + UNIT_POS % TILE;
     let y = CUBE_POS_Y * TILE + UNIT_POS / TILE;
     let tile = (CUBE_POS_Y * tiles_x + CUBE_POS_X) as usize;
+    let pixel = view_offset as usize / OUT_CHANNELS + (y * width + x) as usize;
     TilePixel {
         inside: x < width && y < height,
         px: f32::cast_from(x) + 0.5f32,
         py: f32::cast_from(y) + 0.5f32,
-        out: view_offset as usize + ((y * width + x) as usize) * OUT_CHANNELS,
+        out: pixel * OUT_CHANNELS,
+        pixel,
         start: tile_start[tile],
         end: tile_start[tile + 1],
     }
@@ -196,6 +200,7 @@ pub fn rasterize_forward(
     tile_start: &Tensor<u32>,
     items: &Tensor<u32>,
     out: &mut Tensor<f32>,
+    ends: &mut Tensor<u32>,
     width: u32,
     height: u32,
     tiles_x: u32,
@@ -203,6 +208,7 @@ pub fn rasterize_forward(
     alpha_min: f32,
     alpha_max: f32,
     t_min: f32,
+    #[comptime] keep_ends: bool,
 ) {
     let pix = tile_pixel(tile_start, width, height, tiles_x, view_offset);
     let unit = UNIT_POS as usize;
@@ -227,6 +233,7 @@ pub fn rasterize_forward(
     let mut acc_g = 0.0f32;
     let mut acc_b = 0.0f32;
     let mut acc_d = 0.0f32;
+    let mut last = start;
     let mut base = start;
     while base < end {
         load_batch(
@@ -255,6 +262,7 @@ pub fn rasterize_forward(
                     acc_b += batch[s + 8] * fac;
                     acc_d += batch[s + 9] * fac;
                     t = next_t;
+                    last = base + j + 1;
                 }
             }
             if done {
@@ -279,5 +287,18 @@ pub fn rasterize_forward(
         out[o + 2] = acc_b;
         out[o + 3] = acc_d;
         out[o + 4] = 1.0f32 - t;
+        if keep_ends {
+            write_ends(ends, pix.pixel, t, last);
+        }
     }
+}
+
+/// Keeps a pixel's final transmittance and one past its last composited item for the
+/// backward, which then needs no replay of the forward (gsplat keeps `last_ids` and the
+/// alpha for the same reason). `t` itself, not `1 - alpha`: that would lose T's low bits
+/// where the pixel is nearly opaque.
+#[cube]
+pub fn write_ends(ends: &mut Tensor<u32>, pixel: usize, t: f32, last: u32) {
+    ends[2 * pixel] = f32::to_bits(t);
+    ends[2 * pixel + 1] = last;
 }

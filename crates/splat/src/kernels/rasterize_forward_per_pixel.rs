@@ -11,7 +11,7 @@
 //! `exp` whose alpha would fall below `alpha_min`).
 
 use super::project_forward::RECORD_LANES;
-use super::rasterize_forward::{eval_splat, tile_pixel};
+use super::rasterize_forward::{eval_splat, tile_pixel, write_ends};
 use cubecl::prelude::*;
 
 #[cube(launch)]
@@ -21,6 +21,7 @@ pub fn rasterize_forward_per_pixel(
     tile_start: &Tensor<u32>,
     items: &Tensor<u32>,
     out: &mut Tensor<f32>,
+    ends: &mut Tensor<u32>,
     width: u32,
     height: u32,
     tiles_x: u32,
@@ -28,6 +29,7 @@ pub fn rasterize_forward_per_pixel(
     alpha_min: f32,
     alpha_max: f32,
     t_min: f32,
+    #[comptime] keep_ends: bool,
 ) {
     let pix = tile_pixel(tile_start, width, height, tiles_x, view_offset);
     // Partial edge tiles: units without a pixel have nothing to do and no barrier to meet.
@@ -41,6 +43,7 @@ pub fn rasterize_forward_per_pixel(
     let mut acc_g = 0.0f32;
     let mut acc_b = 0.0f32;
     let mut acc_d = 0.0f32;
+    let mut last = pix.start;
     for k in pix.start..pix.end {
         let rec = items[k as usize] as usize * RECORD_LANES;
         let e = eval_splat(records, rec, px, py, alpha_min, alpha_max);
@@ -56,6 +59,7 @@ pub fn rasterize_forward_per_pixel(
             acc_b += records[rec + 8] * fac;
             acc_d += records[rec + 9] * fac;
             t = next_t;
+            last = k + 1;
         }
     }
     let o = pix.out;
@@ -64,4 +68,7 @@ pub fn rasterize_forward_per_pixel(
     out[o + 2] = acc_b;
     out[o + 3] = acc_d;
     out[o + 4] = 1.0f32 - t;
+    if keep_ends {
+        write_ends(ends, pix.pixel, t, last);
+    }
 }

@@ -146,9 +146,10 @@ fn max_abs(a: &[f64], b: &[f64]) -> f64 {
 /// Renders on wgpu and on the CPU and asserts parity; returns the worst gradient error seen
 /// (relative to each tensor's largest entry) for the report. With `TileSchedule::Auto` the
 /// wgpu render runs under both schedules, so lavapipe (which `Auto` gives the per-pixel
-/// kernels) also checks the shared batches a GPU runs; the batched run's backward reuses the
-/// forward's tile lists and the per-pixel run's bins again (`BackwardBins`), so both
-/// backward paths meet the oracle at no extra run.
+/// kernels) also checks the shared batches a GPU runs; each schedule's backward once reuses
+/// the forward's tile lists and ends and once bins and replays again (`BackwardBins`), and
+/// the batched one also sums per plane (`GradCombine`, forced: CubeCL reports no plane
+/// operations on lavapipe, which has them).
 pub(crate) fn check_parity(
     scene: &HostScene,
     views: &[View],
@@ -160,23 +161,19 @@ pub(crate) fn check_parity(
     let wts = weights(scene, views, w, h, cfg, 99);
     let b = run(&Device::flex(), scene, views, w, h, cfg, &wts);
     let runs = match cfg.tile_schedule {
-        TileSchedule::Auto => vec![
-            (
-                TileSchedule::SharedBatches,
-                BackwardBins::Keep,
-                GradCombine::PlaneSums,
-            ),
-            (
-                TileSchedule::SharedBatches,
-                BackwardBins::Recompute,
-                GradCombine::PerPixel,
-            ),
-            (
-                TileSchedule::PerPixel,
-                BackwardBins::Recompute,
-                GradCombine::Auto,
-            ),
-        ],
+        // Each backward path once: plane sums and per-pixel adds, the forward's ends kept
+        // and replayed, in both compositing kernels.
+        TileSchedule::Auto => {
+            use BackwardBins::{Keep, Recompute};
+            use GradCombine::{PerPixel as Adds, PlaneSums};
+            use TileSchedule::{PerPixel, SharedBatches};
+            vec![
+                (SharedBatches, Keep, PlaneSums),
+                (SharedBatches, Recompute, Adds),
+                (PerPixel, Keep, GradCombine::Auto),
+                (PerPixel, Recompute, GradCombine::Auto),
+            ]
+        }
         one => vec![(one, cfg.backward_bins, cfg.grad_combine)],
     };
     let mut worst = 0.0f64;

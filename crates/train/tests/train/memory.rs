@@ -69,7 +69,8 @@ fn memory_counts_of_the_paper_config() {
 
 /// Guards the GPU estimate's kept tile lists, which the CPU-fitted terms cannot see: the
 /// paper's config at batch 1 renders 4 views of at most 2 context frames' per-pixel
-/// Gaussians, each 64 bytes plus 2.3 intersections of 4; the device estimate adds them, and
+/// Gaussians, each 64 bytes plus 2.3 intersections of 4, and 8 bytes per pixel of where it
+/// stopped; the device estimate adds them, and
 /// `run.recompute_raster_bins` (settable with `--set`) drops them and switches the trainer's
 /// rasterizer to binning again in the backward.
 #[test]
@@ -83,7 +84,7 @@ fn device_estimate_holds_the_kept_raster_bins() {
         load_with_overrides(&config_path("waymo.toml"), &v).unwrap()
     };
     let c = set(&["optim.batch_size=1"]);
-    let want = 4.0 * 2.0 * 350.0 * 518.0 * (64.0 + 4.0 * 2.3);
+    let want = 4.0 * 350.0 * 518.0 * (2.0 * (64.0 + 4.0 * 2.3) + 8.0);
     assert!(
         (raster_bins(&c) - want).abs() <= 1e-9 * want,
         "{}",
