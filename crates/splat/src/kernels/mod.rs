@@ -9,11 +9,13 @@
 //! [`crate::cpu::bins::bin_tiles`]) → `rasterize_forward` (cube per 16x16 tile, thread per
 //! pixel, records in shared-memory batches; `rasterize_forward_per_pixel` without them, for
 //! a software adapter, see [`crate::config::TileSchedule`]); radii and counts by
-//! `view_meta`. Backward: the forward's projection and tile lists where it kept them
-//! ([`crate::config::BackwardBins`], `kept`), else the same projection and binning again; then
-//! `rasterize_backward` or
-//! `rasterize_backward_per_pixel` (atomics into per-Gaussian lanes) and `project_backward` (thread per
-//! Gaussian, camera partials reduced with Burn ops). The sort and scan (`radix_sort`, `scan`,
+//! `view_meta`. Backward: the forward's projection, tile lists and per-pixel ends (final
+//! transmittance, last composited item) where it kept them ([`crate::config::BackwardBins`],
+//! `kept`), else the same projection and binning again and a replay of the compositing; then
+//! `rasterize_backward` or `rasterize_backward_per_pixel` (each splat's gradient from
+//! `splat_grad`, added atomically into per-Gaussian lanes, per pixel or summed over a plane
+//! first: [`crate::config::GradCombine`]) and `project_backward` (thread per Gaussian, camera
+//! partials reduced with Burn ops). The sort and scan (`radix_sort`, `scan`,
 //! host side `sort`) are general and also exposed as tensor functions
 //! ([`crate::primitives`]).
 //!
