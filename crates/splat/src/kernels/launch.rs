@@ -165,9 +165,14 @@ pub(super) struct ViewBins {
 }
 
 impl ViewBins {
-    /// The view with its tile lists, as the compositing reads it; `None` when no Gaussian
-    /// touches a tile.
-    pub(super) fn into_render(self, inp: &Inputs, v: usize) -> Option<ViewRender> {
+    /// The view with its tile lists, as the compositing reads it, its pixels' ends to be
+    /// written to `ends`; `None` when no Gaussian touches a tile.
+    pub(super) fn into_render(
+        self,
+        inp: &Inputs,
+        v: usize,
+        ends: &CubeTensor,
+    ) -> Option<ViewRender> {
         let cam = &inp.cams[v];
         let bins = bins_of_view(
             &self.depth,
@@ -184,7 +189,7 @@ impl ViewBins {
             records: self.records,
             meta: self.meta,
             bins,
-            ends: None,
+            ends: ends.clone(),
         })
     }
 }
@@ -340,6 +345,72 @@ pub(super) fn view_offset(inp: &Inputs, v: usize) -> u32 {
     u32::try_from(off).expect("splat: image batch too large for 32-bit offsets")
 }
 
+/// Composites view `v` into `image` (the render call's batch), and with `keep_ends` each of
+/// its pixels' final transmittance and last composited item into `view.ends`.
+fn composite(
+    inp: &Inputs,
+    cfg: &RasterConfig,
+    v: usize,
+    view: &ViewRender,
+    image: &CubeTensor,
+    keep_ends: bool,
+) {
+    let launch = if shared_batches(&inp.means, cfg.tile_schedule) {
+        rasterize_forward::launch
+    } else {
+        rasterize_forward_per_pixel::launch
+    };
+    let (count, dim) = tile_grid(inp);
+    launch(
+        &inp.means.client,
+        count,
+        dim,
+        view.records.clone().into_tensor_arg(),
+        view.bins.tile_start.clone().into_tensor_arg(),
+        view.bins.items.clone().into_tensor_arg(),
+        image.clone().into_tensor_arg(),
+        view.ends.clone().into_tensor_arg(),
+        inp.width,
+        inp.height,
+        inp.cams[v].tiles_x(),
+        view_offset(inp, v),
+        cfg.alpha_min as f32,
+        cfg.alpha_clamp.max_alpha() as f32,
+        cfg.transmittance_min as f32,
+        keep_ends,
+    );
+}
+
+/// Where the pixels of every view stop compositing, `[V x H x W, 2]` u32 (8 bytes per pixel
+/// and view), or one unused word for a forward that keeps none.
+fn ends_buffer(inp: &Inputs, keep: bool) -> CubeTensor {
+    let pixels = inp.cams.len() * inp.width as usize * inp.height as usize;
+    empty_u32(&inp.means, if keep { pixels * 2 } else { 1 })
+}
+
+/// Every view projected, binned and composited again, for a backward whose forward kept
+/// nothing ([`crate::config::BackwardBins::Recompute`]): the compositing (into a scratch
+/// image) gives each pixel's ends, which the backward kernels read. `None` for a view
+/// without tiles.
+pub(super) fn recomputed_views(inp: &Inputs, cfg: &RasterConfig) -> Vec<Option<ViewRender>> {
+    let (w, h) = (inp.width as usize, inp.height as usize);
+    let scratch = empty_device_dtype(
+        inp.means.client.clone(),
+        inp.means.device.clone(),
+        Shape::new([inp.cams.len() * h * w * OUT_CHANNELS]),
+        DType::F32,
+    );
+    let ends = ends_buffer(inp, true);
+    let binned = project_and_bin_all(inp, cfg).into_iter().enumerate();
+    binned
+        .map(|(v, vb)| {
+            let view = vb?.into_render(inp, v, &ends)?;
+            composite(inp, cfg, v, &view, &scratch, true);
+            Some(view)
+        })
+        .collect()
+}
+
 /// `splat_forward` on the GPU: `(image [V,H,W,5], radii [V,R,2], counts [V,2])`, and with
 /// `keep` every view as the compositing read it, for the backward (empty without).
 pub fn forward(
@@ -358,50 +429,23 @@ pub fn forward(
     // Zero-filled, so views and Gaussians with nothing to say need no launch.
     let radii = zeros_u32(&inp.means, v_count * r * 2);
     let counts = zeros_u32(&inp.means, v_count * 2);
-    let composite = if shared_batches(&inp.means, cfg.tile_schedule) {
-        rasterize_forward::launch
-    } else {
-        rasterize_forward_per_pixel::launch
-    };
     let mut kept: Vec<Option<ViewRender>> = Vec::new();
     if keep {
         kept.resize_with(v_count, || None);
     }
-    // Where every pixel stopped, for a backward that then needs no replay (8 bytes per
-    // pixel and view); a forward that keeps nothing writes none (one unused word).
-    let ends = empty_u32(&inp.means, if keep { v_count * h * w * 2 } else { 1 });
+    // Where every pixel stopped, for the backward (which else composites again).
+    let ends = ends_buffer(inp, keep);
     for (v, vb) in project_and_bin_all(inp, cfg).into_iter().enumerate() {
         let Some(vb) = vb else {
             continue;
         };
         write_view_meta(inp, v, &vb, &radii, &counts);
-        let Some(view) = vb.into_render(inp, v) else {
+        let Some(view) = vb.into_render(inp, v, &ends) else {
             continue;
         };
-        let (count, dim) = tile_grid(inp);
-        composite(
-            &inp.means.client,
-            count,
-            dim,
-            view.records.clone().into_tensor_arg(),
-            view.bins.tile_start.clone().into_tensor_arg(),
-            view.bins.items.clone().into_tensor_arg(),
-            image.clone().into_tensor_arg(),
-            ends.clone().into_tensor_arg(),
-            inp.width,
-            inp.height,
-            inp.cams[v].tiles_x(),
-            view_offset(inp, v),
-            cfg.alpha_min as f32,
-            cfg.alpha_clamp.max_alpha() as f32,
-            cfg.transmittance_min as f32,
-            keep,
-        );
+        composite(inp, cfg, v, &view, &image, keep);
         if keep {
-            kept[v] = Some(ViewRender {
-                ends: Some(ends.clone()),
-                ..view
-            });
+            kept[v] = Some(view);
         }
     }
     let image = CubeBackend::float_reshape(image, Shape::new([v_count, h, w, OUT_CHANNELS]));

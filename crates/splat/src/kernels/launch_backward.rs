@@ -7,13 +7,12 @@
 use super::camera_grad::camera_grad_matrices;
 use super::kept::ViewRender;
 use super::launch::{
-    flat, project_and_bin_all, shared_batches, tile_grid, view_offset, zeros, Inputs,
+    flat, recomputed_views, shared_batches, tile_grid, view_offset, zeros, Inputs,
 };
 use super::project_backward::{project_backward, CAM_GRAD_LANES};
 use super::project_forward::RECORD_LANES;
 use super::rasterize_backward::rasterize_backward;
 use super::rasterize_backward_per_pixel::rasterize_backward_per_pixel;
-use super::sort::empty_u32;
 use super::splat_grad::{CasAdd, NativeAdd};
 use crate::backend::SplatGrads;
 use crate::config::{GradCombine, RasterConfig};
@@ -71,18 +70,10 @@ pub fn backward(
     let batched = shared_batches(&inp.means, cfg.tile_schedule);
     let plane_ops = (inp.means.client.properties().features.plane).contains(Plane::Ops);
     let plane = plane_sums(cfg.grad_combine, batched, plane_ops);
-    let views = kept.unwrap_or_else(|| {
-        let binned = project_and_bin_all(inp, cfg).into_iter().enumerate();
-        binned
-            .map(|(v, vb)| vb.and_then(|vb| vb.into_render(inp, v)))
-            .collect()
-    });
+    let views = kept.unwrap_or_else(|| recomputed_views(inp, cfg));
     for (v, view) in views.into_iter().enumerate() {
         if let Some(vb) = view {
             let (first, n, bins) = (vb.first, vb.rows, vb.bins);
-            // Without the forward's ends the kernels replay its compositing (one unused word).
-            let replay = vb.ends.is_none();
-            let ends = vb.ends.unwrap_or_else(|| empty_u32(&inp.means, 1));
             let v_proj = zeros(&inp.means, n * RECORD_LANES);
             let (count, dim) = tile_grid(inp);
             // The four kernels take the same arguments; the batched one also its plane flag.
@@ -96,7 +87,7 @@ pub fn backward(
                         bins.tile_start.into_tensor_arg(),
                         bins.items.into_tensor_arg(),
                         grad_image.clone().into_tensor_arg(),
-                        ends.into_tensor_arg(),
+                        vb.ends.into_tensor_arg(),
                         v_proj.clone().into_tensor_arg(),
                         inp.width,
                         inp.height,
@@ -104,8 +95,6 @@ pub fn backward(
                         view_offset(inp, v),
                         cfg.alpha_min as f32,
                         cfg.alpha_clamp.max_alpha() as f32,
-                        cfg.transmittance_min as f32,
-                        replay,
                         $($plane)?
                     )
                 };

@@ -11,7 +11,7 @@
 //! a software adapter, see [`crate::config::TileSchedule`]); radii and counts by
 //! `view_meta`. Backward: the forward's projection, tile lists and per-pixel ends (final
 //! transmittance, last composited item) where it kept them ([`crate::config::BackwardBins`],
-//! `kept`), else the same projection and binning again and a replay of the compositing; then
+//! `kept`), else the same projection, binning and compositing again (for the ends); then
 //! `rasterize_backward` or `rasterize_backward_per_pixel` (each splat's gradient from
 //! `splat_grad`, added atomically into per-Gaussian lanes, per pixel or summed over a plane
 //! first: [`crate::config::GradCombine`]) and `project_backward` (thread per Gaussian, camera

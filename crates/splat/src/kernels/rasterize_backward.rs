@@ -1,13 +1,14 @@
 //! Backward of the compositing (`raster_tile_backward` in `cpu/raster.rs`): one cube per tile,
 //! one unit per pixel, gradients accumulated atomically into `v_proj [N, RECORD_LANES]`.
 //!
-//! Per pixel: a forward pass replays the stop rule to find the final transmittance and the end
-//! of the composited range; a reverse pass then walks back to the tile start, recovering each
-//! splat's transmittance as `T / (1 - alpha)` (gsplat's order; the CPU records T forward
-//! instead, which is the same quantity) and accumulating what lies `behind` per channel.
-//! Both passes read the records in shared-memory batches as the forward kernel does; the
-//! reverse pass starts at the furthest end any pixel of the tile reached. Units without a
-//! pixel or without an upstream gradient take part in the loads and add nothing.
+//! Per pixel: the forward left the final transmittance and the end of the composited range
+//! (`ends`, see [`super::rasterize_forward::write_ends()`]); a reverse pass walks back from
+//! there to the tile start, recovering each splat's transmittance as `T / (1 - alpha)`
+//! (gsplat's order; the CPU records T forward instead, which is the same quantity) and
+//! accumulating what lies `behind` per channel. It reads the records in shared-memory
+//! batches as the forward kernel does, from the furthest end any pixel of the tile reached.
+//! Units without a pixel or without an upstream gradient take part in the loads and add
+//! nothing.
 //! [`super::rasterize_backward_per_pixel`] is the same without shared memory, for a software
 //! adapter ([`crate::config::TileSchedule`]). Both compute a splat's gradient with
 //! [`super::splat_grad::splat_grad()`]; with `plane_sums` the units of a plane sum theirs
@@ -34,8 +35,6 @@ pub fn rasterize_backward<A: GradAdd>(
     view_offset: u32,
     alpha_min: f32,
     alpha_max: f32,
-    t_min: f32,
-    #[comptime] replay: bool,
     #[comptime] plane_sums: bool,
 ) {
     let pix = tile_pixel(tile_start, width, height, tiles_x, view_offset);
@@ -57,74 +56,23 @@ pub fn rasterize_backward<A: GradAdd>(
     // A pixel with zero upstream gradient contributes nothing (the CPU skips it too).
     let active = inside
         && !(g_r == 0.0f32 && g_g == 0.0f32 && g_b == 0.0f32 && g_d == 0.0f32 && g_a == 0.0f32);
-    let (start, end, px, py) = (pix.start, pix.end, pix.px, pix.py);
+    let (start, px, py) = (pix.start, pix.px, pix.py);
 
     let mut batch = Shared::<[f32]>::new_slice(BATCH_SHARED);
     let mut ids = Shared::<[u32]>::new_slice(BATCH as usize);
-    let finished = Shared::<[Atomic<u32>]>::new_slice(1usize);
     let furthest = Shared::<[Atomic<u32>]>::new_slice(1usize);
     if unit == 0 {
-        finished[0].store(0u32);
         furthest[0].store(start);
     }
     sync_cube();
 
-    // Pass 1: the pixel's final transmittance and one past its last composited item, as the
-    // forward left them (`ends`, kept with the tile lists) or replayed here.
+    // Pass 1 is the forward's: the pixel's final transmittance and one past its last
+    // composited item, as the compositing left them (`ends`).
     let mut t = 1.0f32;
     let mut last = start;
-    if replay {
-        let mut done = !active;
-        if done {
-            finished[0].fetch_add(1u32);
-        }
-        let mut base = start;
-        while base < end {
-            load_batch(
-                records, items, &mut batch, &mut ids, base, end, unit, alpha_min,
-            );
-            sync_cube();
-            if !done {
-                let mut count = end - base;
-                if count > BATCH {
-                    count = BATCH;
-                }
-                for j in 0..count {
-                    let e = eval_batched(
-                        &batch,
-                        j as usize * SHARED_LANES,
-                        px,
-                        py,
-                        alpha_min,
-                        alpha_max,
-                    );
-                    if !e.skip {
-                        let next_t = t * (1.0f32 - e.alpha);
-                        if next_t <= t_min {
-                            done = true;
-                            break;
-                        }
-                        t = next_t;
-                        last = base + j + 1;
-                    }
-                }
-                if done {
-                    finished[0].fetch_add(1u32);
-                }
-            }
-            base += BATCH;
-            // As in the forward kernel: on CUDA the uniform load is a barrier then the load, so
-            // a write to `finished` must wait for the next `sync_cube` (the batch and `furthest`
-            // may be written at once: their readers met the barrier before the load).
-            if workgroup_uniform_load_atomic(&finished[0]) == BATCH {
-                break;
-            }
-        }
-    } else {
-        if active {
-            t = f32::from_bits(ends[2 * pix.pixel]);
-            last = ends[2 * pix.pixel + 1];
-        }
+    if active {
+        t = f32::from_bits(ends[2 * pix.pixel]);
+        last = ends[2 * pix.pixel + 1];
     }
     let t_final = t;
     if active {

@@ -1,6 +1,6 @@
 //! Backward of the compositing without shared memory ([`crate::config::TileSchedule::PerPixel`]):
-//! the same two passes per pixel as [`super::rasterize_backward`], each unit reading its
-//! records from global memory and stopping on its own, with no barrier.
+//! the same reverse pass per pixel as [`super::rasterize_backward`], from where the forward
+//! stopped (`ends`), each unit reading its records from global memory, with no barrier.
 //!
 //! A software adapter (lavapipe) runs a cube on one CPU thread, in SIMD groups that every
 //! barrier suspends and resumes, and its shared memory is ordinary memory: there the batched
@@ -28,8 +28,6 @@ pub fn rasterize_backward_per_pixel<A: GradAdd>(
     view_offset: u32,
     alpha_min: f32,
     alpha_max: f32,
-    t_min: f32,
-    #[comptime] replay: bool,
 ) {
     let pix = tile_pixel(tile_start, width, height, tiles_x, view_offset);
     // Partial edge tiles: units without a pixel have nothing to do and no barrier to meet.
@@ -48,29 +46,12 @@ pub fn rasterize_backward_per_pixel<A: GradAdd>(
     if g_r == 0.0f32 && g_g == 0.0f32 && g_b == 0.0f32 && g_d == 0.0f32 && g_a == 0.0f32 {
         terminate!();
     }
-    let (start, end, px, py) = (pix.start, pix.end, pix.px, pix.py);
+    let (start, px, py) = (pix.start, pix.px, pix.py);
 
-    // Pass 1: the final transmittance and one past the last composited item, as the forward
-    // left them (`ends`, kept with the tile lists) or replayed here.
-    let mut t = 1.0f32;
-    let mut last = start;
-    if replay {
-        for k in start..end {
-            let rec = items[k as usize] as usize * RECORD_LANES;
-            let e = eval_splat(records, rec, px, py, alpha_min, alpha_max);
-            if !e.skip {
-                let next_t = t * (1.0f32 - e.alpha);
-                if next_t <= t_min {
-                    break;
-                }
-                t = next_t;
-                last = k + 1;
-            }
-        }
-    } else {
-        t = f32::from_bits(ends[2 * pix.pixel]);
-        last = ends[2 * pix.pixel + 1];
-    }
+    // Pass 1 is the forward's: the final transmittance and one past the last composited
+    // item, as the compositing left them (`ends`).
+    let t = f32::from_bits(ends[2 * pix.pixel]);
+    let last = ends[2 * pix.pixel + 1];
 
     // Pass 2: back to front from `last`; every non-skipped item before it was composited.
     let up = Upstream {
