@@ -12,8 +12,9 @@
 # What runs follows what was carried:
 # 1. the binary (cuda-cli): the demo end to end on each of DEMO_BACKENDS (cuda, then wgpu
 #    where a Vulkan driver is present), which reports its own quality and timings;
-#    then the example scene rendered on cuda and on the CPU and compared (SKIP_SPLAT=1 skips
-#    it; SANITIZE=1 adds compute-sanitizer's four tools on the cuda render);
+#    then the example scene rendered on cuda and on the CPU and compared, and the
+#    rasterizer's GPU tests run on cuda (TESTS_S seconds; SKIP_SPLAT=1 skips both;
+#    SANITIZE=1 adds compute-sanitizer's four tools on the cuda render);
 # 2. the benches (cuda-benches): CUDA=1 scripts/gpu_bench.sh (wgpu and cuda rows).
 # Vulkan loaders: where `ldconfig -p` lists no libvulkan and a .gl folder of loader .debs was
 # carried, they are unpacked first (the device tool's notes say how to fetch them).
@@ -25,6 +26,7 @@ cd "$(dirname "$0")/.."
 export RUST_LOG=${RUST_LOG:-warn}
 OUT=${OUT:-runs/device}
 DEMO_S=${DEMO_S:-120}
+TESTS_S=${TESTS_S:-90}
 BENCH_S=${BENCH_S:-420}
 DEMO_BACKENDS=${DEMO_BACKENDS:-cuda wgpu}
 PACK=${PACK:-runs/gpu-pack}
@@ -113,6 +115,18 @@ d = [abs(x - y) for x, y in zip(a.tobytes(), b.tobytes())]
 print(f"== splat parity, cuda vs cpu, {a.size[0]}x{a.size[1]}: max {max(d)}/255, "
       f"mean {sum(d) / len(d):.4f}/255, {sum(x > 1 for x in d)} of {len(d)} values off by more than 1")
 PY
+  # The rasterizer's GPU tests on CUDA: renders, counts, radii and all seven gradients
+  # against the CPU oracle for every kernel variant (shared batches with plane sums and with
+  # per-pixel adds, the per-pixel kernels, kept and recomputed tile lists, CAS atomics), the
+  # readback counts, and the device sort. Two tests assume lavapipe and are skipped: which
+  # kernels `Auto` picks there, and wgpu's binding limit.
+  if [ -x "$bins/raster-tests" ]; then
+    say "raster tests on cuda"
+    ENVISION4D_TEST_GPU=cuda timeout "$TESTS_S" "$bins/raster-tests" wgpu device_sort \
+      --skip wgpu_tile_schedule_picks_the_compositing_kernels \
+      --skip wgpu_oversized_buffer_fails_loudly 2>&1 | tee -a "$log" | grep -E '^test result|FAILED|panicked'
+    say "raster tests on cuda: exit ${PIPESTATUS[0]}"
+  fi
   if [ -n "${SANITIZE:-}" ] && command -v compute-sanitizer > /dev/null; then
     for tool in memcheck initcheck racecheck synccheck; do
       timeout "${SANITIZE_S:-120}" compute-sanitizer --tool "$tool" --error-exitcode 3 \

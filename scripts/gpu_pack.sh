@@ -5,7 +5,8 @@
 # under runs/gpu-pack. docs/PERFORMANCE.md, "Building for CUDA".
 #
 #   scripts/gpu_pack.sh                 # cuda-benches.tar.xz: raster, forward and train_step
-#   WITH_CLI=1 scripts/gpu_pack.sh      # and cuda-cli.tar.xz: the envision4d binary
+#   WITH_CLI=1 scripts/gpu_pack.sh      # and cuda-cli.tar.xz: the envision4d binary and
+#                                       # the rasterizer's tests (run on CUDA there)
 #   NVRTC=1 scripts/gpu_pack.sh         # the `cuda-nvrtc` builds: kernels through NVRTC
 #                                       # rather than LLVM (the machine then needs libnvrtc)
 #
@@ -49,6 +50,16 @@ if [ -n "${WITH_CLI:-}" ]; then
   cargo build --release --workspace --features "$features" --bin envision4d
   mkdir -p "$stage/cli"
   cp "$CARGO_TARGET_DIR/release/envision4d" "$stage/cli/envision4d"
+  # The rasterizer's GPU tests (parity of renders and all seven gradients with the CPU
+  # oracle, every kernel variant; the device sort), run on CUDA by the device check with
+  # ENVISION4D_TEST_GPU=cuda. They share burn and LLVM with the binary, so xz packs them
+  # small.
+  cargo test --release --workspace --features "$features" --test raster --no-run 2>&1 \
+    | tee "$stage/test.log" | grep -E '^error' || true
+  tests=$(sed -n 's/.*Executable tests\/raster\/main\.rs (\(.*\))$/\1/p' "$stage/test.log" | tail -1)
+  [ -x "$tests" ] || { echo "gpu_pack: the raster tests did not build (log: cargo above)" >&2; exit 1; }
+  cp "$tests" "$stage/cli/raster-tests"
+  rm "$stage/test.log"
   packs+=(cli)
 fi
 rm "$stage/build.log"

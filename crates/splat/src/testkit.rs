@@ -176,12 +176,21 @@ pub fn intrinsics(width: u32, height: u32, focal: f64) -> [f64; 9] {
     ]
 }
 
-/// The wgpu device for parity tests, or `None` when skipped on purpose
+/// The GPU device of the parity tests: wgpu by default, or `None` when skipped on purpose
 /// (`ENVISION4D_SKIP_WGPU=1`). Panics with what to install when no adapter can be made, so a
 /// CI machine without a Vulkan driver fails loudly instead of passing silently.
+///
+/// `ENVISION4D_TEST_GPU=cuda` gives the first CUDA GPU instead, in a build with this crate's
+/// `cuda` feature: the same tests then hold the CUDA kernels (32-lane planes, native float
+/// atomics) to the CPU oracle on a GPU machine (`scripts/gpu_device_check.sh`).
 pub fn wgpu_test_device() -> Option<burn::tensor::Device> {
     use burn::tensor::{Device, DeviceKind, Tensor};
     use std::panic::{catch_unwind, AssertUnwindSafe};
+    match std::env::var("ENVISION4D_TEST_GPU").as_deref() {
+        Err(_) | Ok("wgpu") => {}
+        Ok("cuda") => return Some(cuda_test_device()),
+        Ok(other) => panic!("ENVISION4D_TEST_GPU={other}: not a test GPU (wgpu or cuda)"),
+    }
     // No `XDG_RUNTIME_DIR` makes the Vulkan loader warn on stderr, nothing worse; it is the
     // environment's to set (`.ci/run` does), not a test thread's: setting a variable while
     // other test threads run is a data race.
@@ -199,4 +208,18 @@ pub fn wgpu_test_device() -> Option<burn::tensor::Device> {
         }
         Err(_) => panic!("no wgpu adapter could be created (install a Vulkan driver, e.g. mesa-vulkan-drivers, or set ENVISION4D_SKIP_WGPU=1)"),
     }
+}
+
+/// The first CUDA GPU, touched once so a machine without one fails here, by name.
+#[cfg(feature = "cuda")]
+fn cuda_test_device() -> burn::tensor::Device {
+    let device = burn::tensor::Device::cuda(0);
+    let t = burn::tensor::Tensor::<1>::from_floats([1.0, 2.0], &device);
+    let _ = t.into_data();
+    device
+}
+
+#[cfg(not(feature = "cuda"))]
+fn cuda_test_device() -> burn::tensor::Device {
+    panic!("ENVISION4D_TEST_GPU=cuda needs a build with --features envision4d-splat/cuda")
 }
