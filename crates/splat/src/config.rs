@@ -95,13 +95,15 @@ pub enum GradCombine {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "snake_case")]
 pub enum BackwardBins {
-    /// Every view's projected records and tile lists stay on the device until the backward,
-    /// which then skips the projection, both sorts and its host read of the intersection
-    /// totals (gsplat keeps them too). Costs 64 bytes per Gaussian and view plus 4 per
-    /// tile intersection, held from the forward to the backward.
+    /// Every view's projected records and tile lists, and where each pixel stopped
+    /// compositing, stay on the device until the backward, which then skips the projection,
+    /// both sorts, its host read of the intersection totals and a second compositing
+    /// (gsplat keeps them too). Costs 64 bytes per Gaussian and view, 4 per tile
+    /// intersection and 8 per pixel and view, held from the forward to the backward.
     #[default]
     Keep,
-    /// Only the inputs are held; the backward projects and bins every view again.
+    /// Only the inputs are held; the backward projects, bins and composites every view
+    /// again.
     Recompute,
 }
 

@@ -1,8 +1,8 @@
 //! The host side of the rasterizer's backward pass on CubeCL backends: per view, the
 //! compositing backward (float atomics, or compare-and-swap where the device has none), the
-//! projection backward, and the camera gradient, all on the device. Each view's projection
-//! and tile lists are the forward's where it kept them (`kept`), else recomputed with the
-//! forward's code (`launch.rs`).
+//! projection backward, and the camera gradient, all on the device. Each view's projection,
+//! tile lists and pixel ends are the forward's where it kept them (`kept`), else recomputed
+//! with the forward's code (`launch.rs`).
 
 use super::camera_grad::camera_grad_matrices;
 use super::kept::ViewRender;
@@ -48,7 +48,7 @@ fn plane_sums(combine: GradCombine, batched: bool, plane_ops: bool) -> bool {
 
 /// `splat_backward` on the GPU; `shapes` are the seven input shapes for the outputs. `kept`
 /// is every view as the forward composited it ([`super::launch::forward`] with `keep`);
-/// `None` projects and bins them again (one more host read).
+/// `None` projects, bins and composites them again (one more host read).
 pub fn backward(
     inp: &Inputs,
     grad_image: FloatTensor<CubeBackend>,
