@@ -69,19 +69,37 @@ strip "$stage"/*/*
 # CUDA_PATH) into any kernel that calls a math function PTX has no instruction for: our
 # projection and rasterizer kernels do. A machine with the driver alone lacks it, so the pack
 # carries one: the toolkit's under CUDA_PATH, or the copy in NVIDIA's PyPI wheel of nvcc.
+# The same wheel has NVIDIA's PTX assembler, which the check below runs.
 libdevice=${CUDA_PATH:-/usr/local/cuda}/nvvm/libdevice/libdevice.10.bc
-if [ ! -f "$libdevice" ]; then
+ptxas=${CUDA_PATH:-/usr/local/cuda}/bin/ptxas
+[ -x "$ptxas" ] || ptxas=$(command -v ptxas || true)
+if [ ! -f "$libdevice" ] || [ -z "$ptxas" ]; then
   pip download --no-deps --quiet nvidia-cuda-nvcc-cu12 -d "$stage/wheel"
-  python3 -c 'import sys, zipfile, glob; zipfile.ZipFile(glob.glob(sys.argv[1] + "/*.whl")[0]).extract("nvidia/cuda_nvcc/nvvm/libdevice/libdevice.10.bc", sys.argv[1])' "$stage/wheel"
-  libdevice=$stage/wheel/nvidia/cuda_nvcc/nvvm/libdevice/libdevice.10.bc
+  python3 -c 'import sys, zipfile, glob
+z = zipfile.ZipFile(glob.glob(sys.argv[1] + "/*.whl")[0])
+for name in ("nvvm/libdevice/libdevice.10.bc", "bin/ptxas"):
+    z.extract("nvidia/cuda_nvcc/" + name, sys.argv[1])' "$stage/wheel"
+  [ -f "$libdevice" ] || libdevice=$stage/wheel/nvidia/cuda_nvcc/nvvm/libdevice/libdevice.10.bc
+  if [ -z "$ptxas" ]; then
+    ptxas=$stage/wheel/nvidia/cuda_nvcc/bin/ptxas
+    chmod +x "$ptxas"
+  fi
 fi
 mkdir -p "$stage/cuda/nvvm/libdevice"
 cp "$libdevice" "$stage/cuda/nvvm/libdevice/"
-rm -rf "$stage/wheel"
 
-# Every rasterizer kernel through that route for Hopper, here, before a lease is spent on it.
+# Every rasterizer kernel through that route for Hopper, here, before a lease is spent on it;
+# then NVIDIA's assembler over each kernel's PTX, for the target it names, as the driver's
+# JIT would take it: an instruction, a PTX version or a target it refuses fails here.
 cargo build --release --workspace --features "$features" --example ptx_check
-CUDA_PATH=$stage/cuda "$CARGO_TARGET_DIR/release/examples/ptx_check" 90
+CUDA_PATH=$stage/cuda "$CARGO_TARGET_DIR/release/examples/ptx_check" 90 "$stage/ptx"
+for ptx in "$stage"/ptx/*.ptx; do
+  target=$(sed -n 's/^\.target \([a-z0-9_]*\).*/\1/p' "$ptx" | head -1)
+  "$ptxas" -arch="$target" "$ptx" -o /dev/null \
+    || { echo "gpu_pack: ptxas refused $(basename "$ptx") (target $target)" >&2; exit 1; }
+done
+echo "gpu_pack: ptxas ($("$ptxas" --version | tail -1)) assembled $(ls "$stage"/ptx/*.ptx | wc -l) kernels"
+rm -rf "$stage/wheel" "$stage/ptx"
 mkdir -p "$PACK"
 # What travels with a pack: tracked and untracked-not-ignored files (deleted ones skipped),
 # and the Vulkan loaders in .gl when present (the wgpu demo and rows need them).
