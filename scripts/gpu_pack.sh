@@ -99,6 +99,13 @@ for ptx in "$stage"/ptx/*.ptx; do
     || { echo "gpu_pack: ptxas refused $(basename "$ptx") (target $target)" >&2; exit 1; }
 done
 echo "gpu_pack: ptxas ($("$ptxas" --version | tail -1)) assembled $(ls "$stage"/ptx/*.ptx | wc -l) kernels"
+# The NVRTC builds transpile to CUDA C++ at run time instead: the same kernels through NVRTC
+# and ptxas here (NVIDIA's wheels, cached in runs/cuda-wheels).
+if [ -n "${NVRTC:-}" ]; then
+  "$CARGO_TARGET_DIR/release/examples/ptx_check" 90 "$stage/cpp" --cpp > /dev/null
+  scripts/nvrtc_check.py "$stage/cpp" | tail -1
+  rm -rf "$stage/cpp"
+fi
 rm -rf "$stage/wheel" "$stage/ptx"
 mkdir -p "$PACK"
 # What travels with a pack: tracked and untracked-not-ignored files (deleted ones skipped),

@@ -4,11 +4,16 @@
 //! cannot lower fails here, before a GPU lease is spent on it (docs/PERFORMANCE.md,
 //! "Building for CUDA").
 //!
-//! cargo run --release -p envision4d-splat --features envision4d-splat/cuda --example ptx_check -- [SM] [DIR]
+//! cargo run --release -p envision4d-splat --features envision4d-splat/cuda --example ptx_check -- [SM] [DIR] [--cpp]
 //!
 //! SM is the architecture (90 = Hopper, the default; 80 = Ampere); DIR, when given, gets one
-//! `.ptx` file per kernel. Exit code 1 when any kernel fails to compile.
+//! `.ptx` file per kernel. With `--cpp` the kernels go through CubeCL's other route instead,
+//! CUDA C++ for NVRTC (the `cuda-nvrtc` builds'), and DIR gets one `.cu` file per kernel
+//! (`scripts/nvrtc_check.py` compiles them with NVRTC, offline). Exit code 1 when any kernel
+//! fails to compile.
 
+use cubecl::cuda::compiler::CudaBackend;
+use cubecl::cuda::{CudaCompilationOptions, CudaCompiler};
 use cubecl::ir::features::{Features, Plane};
 use cubecl::ir::nvidia::SmArch;
 use cubecl::ir::{DeviceIdentity, HardwareProperties, MemoryDeviceProperties};
@@ -23,6 +28,7 @@ use envision4d_splat::kernels::{
     rasterize_backward_per_pixel, rasterize_forward, rasterize_forward_per_pixel, scan, view_meta,
 };
 use std::ffi::CStr;
+use std::path::Path;
 use std::sync::Arc;
 
 /// Units per cube of the one-dimensional kernels (the launch code's own sizes vary; the
@@ -119,7 +125,8 @@ macro_rules! arg {
 }
 
 fn main() {
-    let mut args = std::env::args().skip(1);
+    let cpp = std::env::args().any(|a| a == "--cpp");
+    let mut args = std::env::args().skip(1).filter(|a| a != "--cpp");
     let sm: u32 = match args.next().map(|a| a.parse()) {
         None => 90,
         Some(Ok(sm)) => sm,
@@ -164,6 +171,11 @@ fn main() {
         ptx_version: PtxVersion::for_driver(DRIVER),
         ..Default::default()
     };
+    if cpp {
+        let failed = cpp_route(kernels, sm, dir.as_deref());
+        println!("sm_{sm}, CUDA C++: {failed} kernel(s) failed");
+        std::process::exit(i32::from(failed > 0));
+    }
     let mut failed = 0;
     for (name, kernel) in kernels {
         let mut compiler = PlironCompiler {
@@ -202,4 +214,39 @@ fn main() {
     if failed > 0 {
         std::process::exit(1);
     }
+}
+
+/// The kernels through CubeCL's CUDA C++ route, as a `cuda-nvrtc` build's runtime would
+/// transpile them for NVRTC (a 32-lane warp, the architecture; the device-dependent features
+/// off, the plainest source); each source into `dir` as `<name>.cu`. The failures.
+fn cpp_route(kernels: Vec<(&str, Box<dyn CubeKernel>)>, sm: u32, dir: Option<&Path>) -> usize {
+    let mut options = CudaCompilationOptions {
+        arch: Some(SmArch::new(sm, sm >= 70)),
+        ..Default::default()
+    };
+    options.cpp.warp_size = 32;
+    let mut failed = 0;
+    for (name, kernel) in kernels {
+        let mut compiler = CudaCompiler::new(CudaBackend::Cpp);
+        match compiler.compile(kernel.define(), &options) {
+            Ok(source) => {
+                let source = source.to_string();
+                println!("ok      {name}: {} bytes of CUDA C++", source.len());
+                if let Some(dir) = dir {
+                    let path = dir.join(format!("{name}.cu"));
+                    if let Err(e) = std::fs::create_dir_all(dir)
+                        .and_then(|()| std::fs::write(&path, source.as_bytes()))
+                    {
+                        eprintln!("ptx_check: cannot write {}: {e}", path.display());
+                        std::process::exit(1);
+                    }
+                }
+            }
+            Err(e) => {
+                println!("FAILED  {name}: {e:?}");
+                failed += 1;
+            }
+        }
+    }
+    failed
 }
