@@ -190,15 +190,7 @@ fn main() {
                     "ok      {name}: {} bytes of PTX, {entries} entry",
                     ptx.len()
                 );
-                if let Some(dir) = &dir {
-                    let path = dir.join(format!("{name}.ptx"));
-                    if let Err(e) = std::fs::create_dir_all(dir)
-                        .and_then(|()| std::fs::write(&path, ptx.as_bytes()))
-                    {
-                        eprintln!("ptx_check: cannot write {}: {e}", path.display());
-                        std::process::exit(1);
-                    }
-                }
+                write_out(dir.as_deref(), name, "ptx", &ptx);
             }
             Ok(_) => {
                 println!("FAILED  {name}: the NVPTX target returned no PTX");
@@ -232,15 +224,7 @@ fn cpp_route(kernels: Vec<(&str, Box<dyn CubeKernel>)>, sm: u32, dir: Option<&Pa
             Ok(source) => {
                 let source = source.to_string();
                 println!("ok      {name}: {} bytes of CUDA C++", source.len());
-                if let Some(dir) = dir {
-                    let path = dir.join(format!("{name}.cu"));
-                    if let Err(e) = std::fs::create_dir_all(dir)
-                        .and_then(|()| std::fs::write(&path, source.as_bytes()))
-                    {
-                        eprintln!("ptx_check: cannot write {}: {e}", path.display());
-                        std::process::exit(1);
-                    }
-                }
+                write_out(dir, name, "cu", &source);
             }
             Err(e) => {
                 println!("FAILED  {name}: {e:?}");
@@ -249,4 +233,16 @@ fn cpp_route(kernels: Vec<(&str, Box<dyn CubeKernel>)>, sm: u32, dir: Option<&Pa
         }
     }
     failed
+}
+
+/// Writes one kernel's output to `dir/<name>.<ext>` when a folder was given; exit 1 when it
+/// cannot.
+fn write_out(dir: Option<&Path>, name: &str, ext: &str, text: &str) {
+    if let Some(dir) = dir {
+        let path = dir.join(format!("{name}.{ext}"));
+        if let Err(e) = std::fs::create_dir_all(dir).and_then(|()| std::fs::write(&path, text)) {
+            eprintln!("ptx_check: cannot write {}: {e}", path.display());
+            std::process::exit(1);
+        }
+    }
 }
