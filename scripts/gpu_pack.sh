@@ -103,8 +103,11 @@ echo "gpu_pack: ptxas ($("$ptxas" --version | tail -1)) assembled $(ls "$stage"/
 # and ptxas here (NVIDIA's wheels, cached in runs/cuda-wheels).
 if [ -n "${NVRTC:-}" ]; then
   "$CARGO_TARGET_DIR/release/examples/ptx_check" 90 "$stage/cpp" --cpp > /dev/null
-  scripts/nvrtc_check.py "$stage/cpp" | tail -1
-  rm -rf "$stage/cpp"
+  # (Its log whole where a kernel fails: NVRTC's messages name the line.)
+  scripts/nvrtc_check.py "$stage/cpp" > "$stage/nvrtc.log" \
+    || { cat "$stage/nvrtc.log" >&2; exit 1; }
+  tail -1 "$stage/nvrtc.log"
+  rm -rf "$stage/cpp" "$stage/nvrtc.log"
 fi
 rm -rf "$stage/wheel" "$stage/ptx"
 mkdir -p "$PACK"

@@ -147,12 +147,12 @@ fn main() {
         kernel!("project_forward", project_forward::project_forward::ProjectForward, Line, [T T T T T T T T s s s s s s s s]),
         kernel!("radix_count", radix_sort::radix_count::RadixCount, Line, [T T s s s]),
         kernel!("radix_scatter", radix_sort::radix_scatter::RadixScatter, Line, [T T T T T s s s]),
-        // Every comptime branch once: the backward adding per pixel or per plane; the
-        // forward keeping its ends or not.
-        kernel!("rasterize_backward<NativeAdd>", rasterize_backward::rasterize_backward::RasterizeBackward::<NativeAdd>, Tile, [T T T T T T s s s s s s], false),
-        kernel!("rasterize_backward<CasAdd>", rasterize_backward::rasterize_backward::RasterizeBackward::<CasAdd>, Tile, [T T T T T T s s s s s s], false),
-        kernel!("rasterize_backward<NativeAdd, plane sums>", rasterize_backward::rasterize_backward::RasterizeBackward::<NativeAdd>, Tile, [T T T T T T s s s s s s], true),
-        kernel!("rasterize_backward<CasAdd, plane sums>", rasterize_backward::rasterize_backward::RasterizeBackward::<CasAdd>, Tile, [T T T T T T s s s s s s], true),
+        // Every comptime branch once: the backward adding per pixel or per plane (with the
+        // plane barriers CUDA gets); the forward keeping its ends or not.
+        kernel!("rasterize_backward<NativeAdd>", rasterize_backward::rasterize_backward::RasterizeBackward::<NativeAdd>, Tile, [T T T T T T s s s s s s], false, false),
+        kernel!("rasterize_backward<CasAdd>", rasterize_backward::rasterize_backward::RasterizeBackward::<CasAdd>, Tile, [T T T T T T s s s s s s], false, false),
+        kernel!("rasterize_backward<NativeAdd, plane sums>", rasterize_backward::rasterize_backward::RasterizeBackward::<NativeAdd>, Tile, [T T T T T T s s s s s s], true, true),
+        kernel!("rasterize_backward<CasAdd, plane sums>", rasterize_backward::rasterize_backward::RasterizeBackward::<CasAdd>, Tile, [T T T T T T s s s s s s], true, true),
         kernel!("rasterize_forward", rasterize_forward::rasterize_forward::RasterizeForward, Tile, [T T T T T s s s s s s s], false),
         kernel!("rasterize_forward<ends>", rasterize_forward::rasterize_forward::RasterizeForward, Tile, [T T T T T s s s s s s s], true),
         kernel!("rasterize_backward_per_pixel<NativeAdd>", rasterize_backward_per_pixel::rasterize_backward_per_pixel::RasterizeBackwardPerPixel::<NativeAdd>, Tile, [T T T T T T s s s s s s]),

@@ -298,8 +298,10 @@ pub const KEPT_BYTES_PER_PIXEL: f64 = 8.0;
 
 /// What the GPU rasterizer holds from a step's forward to its backward: every rendered view
 /// (B x (T_c + T_f)) renders at most the T_c context frames' per-pixel Gaussians
-/// (self-exclusive views fewer), so a bound; plus where each of its pixels stopped. 0 with `[run] recompute_raster_bins` and in the
-/// backbone stage, which renders nothing.
+/// (self-exclusive views fewer), so a bound; plus where each of its pixels stopped. 0 with
+/// `[run] recompute_raster_bins` (whose backward then holds 28 bytes per pixel and view, a
+/// scratch image and those ends, only while it runs) and in the backbone stage, which
+/// renders nothing.
 pub fn raster_bins(cfg: &TrainConfig) -> f64 {
     if cfg.run.recompute_raster_bins || cfg.stage == Stage::Backbone {
         return 0.0;

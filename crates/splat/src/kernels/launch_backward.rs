@@ -68,17 +68,24 @@ pub fn backward(
     let native = has_float_atomic_add(&inp.means)
         && cfg.grad_accumulation != crate::config::GradAccumulation::CompareAndSwap;
     let batched = shared_batches(&inp.means, cfg.tile_schedule);
-    let plane_ops = (inp.means.client.properties().features.plane).contains(Plane::Ops);
-    let plane = plane_sums(cfg.grad_combine, batched, plane_ops);
+    let plane_features = inp.means.client.properties().features.plane;
+    let plane = plane_sums(
+        cfg.grad_combine,
+        batched,
+        plane_features.contains(Plane::Ops),
+    );
+    // A plane barrier before each vote and sum where the device has one (CUDA; see
+    // `plane_step`).
+    let plane_sync = plane && plane_features.contains(Plane::Sync);
     let views = kept.unwrap_or_else(|| recomputed_views(inp, cfg));
     for (v, view) in views.into_iter().enumerate() {
         if let Some(vb) = view {
             let (first, n, bins) = (vb.first, vb.rows, vb.bins);
             let v_proj = zeros(&inp.means, n * RECORD_LANES);
             let (count, dim) = tile_grid(inp);
-            // The four kernels take the same arguments; the batched one also its plane flag.
+            // The four kernels take the same arguments; the batched one also its plane flags.
             macro_rules! composite {
-                ($kernel:ident::<$add:ty>($($plane:expr)?)) => {
+                ($kernel:ident::<$add:ty>($($flag:expr),*)) => {
                     $kernel::launch::<$add>(
                         &inp.means.client,
                         count,
@@ -95,13 +102,13 @@ pub fn backward(
                         view_offset(inp, v),
                         cfg.alpha_min as f32,
                         cfg.alpha_clamp.max_alpha() as f32,
-                        $($plane)?
+                        $($flag),*
                     )
                 };
             }
             match (native, batched) {
-                (true, true) => composite!(rasterize_backward::<NativeAdd>(plane)),
-                (false, true) => composite!(rasterize_backward::<CasAdd>(plane)),
+                (true, true) => composite!(rasterize_backward::<NativeAdd>(plane, plane_sync)),
+                (false, true) => composite!(rasterize_backward::<CasAdd>(plane, plane_sync)),
                 (true, false) => composite!(rasterize_backward_per_pixel::<NativeAdd>()),
                 (false, false) => composite!(rasterize_backward_per_pixel::<CasAdd>()),
             }

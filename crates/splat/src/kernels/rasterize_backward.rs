@@ -36,6 +36,7 @@ pub fn rasterize_backward<A: GradAdd>(
     alpha_min: f32,
     alpha_max: f32,
     #[comptime] plane_sums: bool,
+    #[comptime] plane_sync: bool,
 ) {
     let pix = tile_pixel(tile_start, width, height, tiles_x, view_offset);
     let unit = UNIT_POS as usize;
@@ -112,7 +113,9 @@ pub fn rasterize_backward<A: GradAdd>(
                 let composited = active && k < last && !e.skip;
                 let id = ids[(k - first) as usize] as usize;
                 let shade = shade_of_batch(&batch, s);
-                plane_step::<A>(v_proj, id, composited, e, shade, up, &mut state, alpha_max);
+                plane_step::<A>(
+                    v_proj, id, composited, e, shade, up, &mut state, alpha_max, plane_sync,
+                );
             }
         } else if active {
             for j in 0..count {

@@ -28,7 +28,8 @@ const SIGMA_CUT_MARGIN: f32 = crate::cpu::raster::SIGMA_CUT_MARGIN as f32;
 /// An early-reject distance that rejects nothing early (a finite literal: WGSL has no inf).
 const NO_CUT: f32 = f32::MAX;
 
-/// Tile side in pixels ([`crate::config::TILE_SIZE`]); the cube is TILE x TILE threads.
+/// Tile side in pixels ([`crate::config::TILE_SIZE`]); a tile's cube is TILE x TILE units
+/// in one row (unit = row x TILE + column).
 pub const TILE: u32 = crate::config::TILE_SIZE;
 /// Channels written per pixel: R, G, B, accumulated depth, alpha (the CPU path's layout).
 pub const OUT_CHANNELS: usize = crate::cpu::raster::OUT_CHANNELS;

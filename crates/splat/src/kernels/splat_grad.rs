@@ -261,6 +261,13 @@ fn add_nonzero<A: GradAdd>(slot: &mut Atomic<A::Proxy>, sum: f32) {
 /// pixel composited it (else its part is zero and `state` stays). Must be reached by every
 /// unit of the plane (uniform control flow); the planes where no unit composited the splat
 /// skip the sums. The plane's first unit adds the ten sums.
+///
+/// `converge` (where the device has a plane barrier: CUDA) re-joins the plane before the
+/// vote and before the sums. CubeCL's CUDA plane operations act on the lanes running at that
+/// moment (`__activemask()`), and after a branch (this unit's gradient, the first unit's
+/// adds of the splat before) CUDA does not promise the warp has re-joined: a vote or a sum
+/// over part of it would be wrong. `__syncwarp()` costs a few cycles. WGSL has no such
+/// barrier; its subgroup operations are defined for the whole subgroup.
 #[cube]
 #[allow(clippy::too_many_arguments)]
 pub fn plane_step<A: GradAdd>(
@@ -272,11 +279,18 @@ pub fn plane_step<A: GradAdd>(
     up: Upstream,
     state: &mut Behind,
     alpha_max: f32,
+    #[comptime] converge: bool,
 ) {
+    if converge {
+        sync_plane();
+    }
     if plane_any(composited) {
         let mut grad = SplatGrad::zero();
         if composited {
             splat_grad(e, sh, up, state, alpha_max, &mut grad);
+        }
+        if converge {
+            sync_plane();
         }
         // Every unit of the plane takes part in the sums; the first adds them.
         let mean_x = plane_sum(grad.mean_x);

@@ -147,7 +147,7 @@ fn max_abs(a: &[f64], b: &[f64]) -> f64 {
 /// (relative to each tensor's largest entry) for the report. With `TileSchedule::Auto` the
 /// wgpu render runs under both schedules, so lavapipe (which `Auto` gives the per-pixel
 /// kernels) also checks the shared batches a GPU runs; each schedule's backward once reuses
-/// the forward's tile lists and ends and once bins and replays again (`BackwardBins`), and
+/// the forward's tile lists and ends and once bins and composites again (`BackwardBins`), and
 /// the batched one also sums per plane (`GradCombine`, forced: CubeCL reports no plane
 /// operations on lavapipe, which has them).
 pub(crate) fn check_parity(
@@ -162,7 +162,7 @@ pub(crate) fn check_parity(
     let b = run(&Device::flex(), scene, views, w, h, cfg, &wts);
     let runs = match cfg.tile_schedule {
         // Each backward path once: plane sums and per-pixel adds, the forward's ends kept
-        // and replayed, in both compositing kernels.
+        // and composited again, in both compositing kernels.
         TileSchedule::Auto => {
             use BackwardBins::{Keep, Recompute};
             use GradCombine::{PerPixel as Adds, PlaneSums};
