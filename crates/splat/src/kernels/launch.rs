@@ -13,7 +13,7 @@ use super::project_forward::{project_forward, META_LANES, RECORD_LANES};
 use super::rasterize_forward::{rasterize_forward, OUT_CHANNELS, TILE};
 use super::rasterize_forward_per_pixel::rasterize_forward_per_pixel;
 use super::readback::read_u32s;
-use super::sort::retype;
+use super::sort::{empty_u32_for, retype};
 use super::view_meta::{view_counts, view_radii};
 use crate::camera::Camera;
 use crate::config::{RasterConfig, TileSchedule};
@@ -385,14 +385,7 @@ fn composite(
 /// and view), or one unused word for a forward that keeps none.
 fn ends_buffer(inp: &Inputs, keep: bool) -> CubeTensor {
     let pixels = inp.cams.len() * inp.width as usize * inp.height as usize;
-    let len = if keep { pixels * 2 } else { 1 };
-    check_binding(&inp.means, "pixel ends", len);
-    empty_device_dtype(
-        inp.means.client.clone(),
-        inp.means.device.clone(),
-        Shape::new([len]),
-        DType::U32,
-    )
+    empty_u32_for(&inp.means, "pixel ends", if keep { pixels * 2 } else { 1 })
 }
 
 /// Every view projected, binned and composited again, for a backward whose forward kept

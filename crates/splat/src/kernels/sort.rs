@@ -28,7 +28,12 @@ fn grid(cubes: u32) -> CubeCount {
 
 /// A new uninitialised u32 buffer of `len` elements on `like`'s device.
 pub fn empty_u32(like: &CubeTensor, len: usize) -> CubeTensor {
-    super::launch::check_binding(like, "sort/scan", len);
+    empty_u32_for(like, "sort/scan", len)
+}
+
+/// [`empty_u32`] for a buffer that the size check's message calls `what`.
+pub fn empty_u32_for(like: &CubeTensor, what: &str, len: usize) -> CubeTensor {
+    super::launch::check_binding(like, what, len);
     empty_device_dtype(
         like.client.clone(),
         like.device.clone(),
