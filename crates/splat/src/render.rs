@@ -185,19 +185,7 @@ fn validate_sets(
     )?;
     check_shape("ks", &cameras.ks.dims(), &[Some(v), Some(3), Some(3)])?;
     sets.validate(v, n).map_err(RenderError::Config)?;
-    crate::kernels::readback::count_camera_reads();
-    let vm: Vec<f64> = cameras
-        .viewmats
-        .to_data()
-        .convert::<f64>()
-        .try_into_vec()
-        .map_err(|e| RenderError::Config(format!("{e:?}")))?;
-    let ks: Vec<f64> = cameras
-        .ks
-        .to_data()
-        .convert::<f64>()
-        .try_into_vec()
-        .map_err(|e| RenderError::Config(format!("{e:?}")))?;
+    let (vm, ks) = read_cameras(cameras, v)?;
     for i in 0..v {
         Camera::from_matrices(
             i,
@@ -214,6 +202,31 @@ fn validate_sets(
         viewmats: f32s(vm),
         ks: f32s(ks),
     })
+}
+
+/// Reads the `[V, 4, 4]` view matrices and `[V, 3, 3]` intrinsics back in one transfer: the
+/// two flattened into one `[25 V]` vector on the device (detached, so no autodiff node is
+/// recorded), since on a GPU every read waits for the queue to drain up to the cameras. Two
+/// reads only when the two tensors have different float types (f64 ones must stay exact).
+fn read_cameras(cameras: &Cameras, v: usize) -> Result<(Vec<f64>, Vec<f64>), RenderError> {
+    let host = |d: TensorData| -> Result<Vec<f64>, RenderError> {
+        d.convert::<f64>()
+            .try_into_vec()
+            .map_err(|e| RenderError::Config(format!("{e:?}")))
+    };
+    let (viewmats, ks) = (
+        cameras.viewmats.clone().detach(),
+        cameras.ks.clone().detach(),
+    );
+    if viewmats.dtype() != ks.dtype() {
+        crate::kernels::readback::count_camera_reads(2);
+        return Ok((host(viewmats.to_data())?, host(ks.to_data())?));
+    }
+    crate::kernels::readback::count_camera_reads(1);
+    let mut both =
+        host(Tensor::cat(vec![viewmats.reshape([v * 16]), ks.reshape([v * 9])], 0).into_data())?;
+    let ks = both.split_off(v * 16);
+    Ok((both, ks))
 }
 
 /// Renders every camera of `cameras` from `gaussians`: gsplat's `rasterization(...,

@@ -1,6 +1,6 @@
 //! Every device-to-host read of the CubeCL rasterizer goes through here, so they can be
-//! counted: a test holds a render call to its cameras (two tiny tensors, read once by
-//! validation and handed to the kernels) and one read of its views' intersection totals in
+//! counted: a test holds a render call to its cameras (two tiny tensors, read together once
+//! by validation and handed to the kernels) and one read of its views' intersection totals in
 //! the forward (and one more in a backward that bins again, `BackwardBins::Recompute`).
 
 use burn::backend::ops::IntTensorOps;
@@ -14,18 +14,19 @@ thread_local! {
 }
 
 /// How many times this thread's renders have read the device back so far. A render call
-/// reads its cameras once (two tiny tensors, while validating) and, per pass that bins (the
-/// forward; the backward too under `BackwardBins::Recompute`), its views' intersection
-/// totals and wrap flags (8 bytes per view, one read); nothing else comes back. Tests count
-/// with it; it is per thread so parallel tests do not disturb each other.
+/// reads its cameras once (two tiny tensors in one read, while validating) and, per pass
+/// that bins (the forward; the backward too under `BackwardBins::Recompute`), its views'
+/// intersection totals and wrap flags (8 bytes per view, one read); nothing else comes back.
+/// Tests count with it; it is per thread so parallel tests do not disturb each other.
 pub fn host_readbacks() -> usize {
     READBACKS.with(|c| c.get())
 }
 
-/// Counts the read of a render call's two camera tensors, which validation makes (on the
-/// host path it is a copy; counted all the same, so the count does not depend on it).
-pub fn count_camera_reads() {
-    READBACKS.with(|c| c.set(c.get() + 2));
+/// Counts the reads of a render call's camera tensors, which validation makes: one (both
+/// flattened into one vector), or two when their float types differ. On the host path it is
+/// a copy; counted all the same, so the count does not depend on the backend.
+pub fn count_camera_reads(reads: usize) {
+    READBACKS.with(|c| c.set(c.get() + reads));
 }
 
 /// Counts one device-to-host read of this thread.

@@ -346,3 +346,40 @@ fn empty_scene_through_burn() {
         .unwrap();
     assert!(depth.iter().all(|d| *d == 0.0));
 }
+
+/// Guards the one camera read: the view matrices and intrinsics come back in one transfer
+/// (concatenated on the device) and are split at the right place, and cameras whose two
+/// tensors differ in float type (which cannot be concatenated) are read in two, not
+/// refused: both renders equal the all-f32 one.
+#[test]
+fn cameras_are_read_once_and_mixed_float_types_still_render() {
+    use envision4d_splat::kernels::readback::host_readbacks;
+    let device = Device::flex();
+    let scene = random_scene(12, 5, SceneSpec::default());
+    let views = views();
+    let cfg = RasterConfig::default();
+    let (g, c) = inputs(&scene, &views, &device, DType::F32);
+    let rgb = |c: &Cameras| -> (Vec<f32>, usize) {
+        let before = host_readbacks();
+        let out = render(&g, c, &cfg).expect("valid render");
+        let reads = host_readbacks() - before;
+        let v = out.rgb.into_data().convert::<f32>().try_to_vec::<f32>().unwrap();
+        (v, reads)
+    };
+    let (want, reads) = rgb(&c);
+    assert_eq!(reads, 1, "same float type: one read of both camera tensors");
+    assert!(want.iter().any(|&x| x > 0.0), "the scene is visible");
+    let (_, mixed) = inputs(&scene, &views, &device, DType::F64);
+    let mixed = Cameras {
+        viewmats: c.viewmats.clone(),
+        ..mixed
+    };
+    let (got, reads) = rgb(&mixed);
+    assert_eq!(reads, 2, "f32 view matrices, f64 intrinsics: two reads");
+    let worst = want
+        .iter()
+        .zip(&got)
+        .map(|(a, b)| (a - b).abs())
+        .fold(0.0f32, f32::max);
+    assert!(worst <= 1e-6, "mixed-type cameras render {worst} away");
+}

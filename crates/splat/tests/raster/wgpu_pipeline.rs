@@ -132,10 +132,10 @@ fn wgpu_render_reads_back_only_cameras_and_counts() {
     ));
     let wts = weights(&scene, &views, w, h, &RasterConfig::default(), 3);
     let mut runs = Vec::new();
-    // The 2 camera tensors once, then 1 read of all views' totals per pass that bins.
+    // The 2 camera tensors in 1 read, then 1 read of all views' totals per pass that bins.
     for (backward_bins, want) in [
-        (BackwardBins::Keep, 2 + 1),
-        (BackwardBins::Recompute, 2 + 2),
+        (BackwardBins::Keep, 1 + 1),
+        (BackwardBins::Recompute, 1 + 2),
     ] {
         let cfg = RasterConfig {
             backward_bins,
