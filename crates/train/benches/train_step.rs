@@ -7,7 +7,7 @@
 //! ```text
 //! cargo bench -p envision4d-train --bench train_step -- [--config configs/waymo.toml]
 //!     [--preset paper|tiny] [--image HxW] [--batch B] [--step S] [--repeats N]
-//!     [--device cpu|wgpu|cuda] [--checkpointing] [--set KEY=VALUE]...
+//!     [--device cpu|wgpu|cuda] [--checkpointing] [--launches] [--set KEY=VALUE]...
 //! ```
 //!
 //! `--step` is the schedule step the batch is trained at (default: the first after the
@@ -19,20 +19,68 @@
 //! it multiplies, which `scripts/memory_fit.sh` fits against the measured peaks; the warm-up
 //! line carries the first step's peak RSS. The images are uniform
 //! noise. One untimed step warms the allocator and, on a GPU, the kernel caches; each timed
-//! step prints `train_step_s=<s> peak_rss_gib=<g> device_reserved_gib=<g>`: the host's peak
-//! RSS, and the device memory pool's reserved bytes after the step (GPU backends; `nan` on
-//! the CPU, whose memory is the RSS).
+//! step prints `train_step_s=<s> peak_rss_gib=<g> device_reserved_gib=<g>
+//! kernel_launches=<n>`: the host's peak RSS, the device memory pool's reserved bytes after
+//! the step (GPU backends; `nan` on the CPU, whose memory is the RSS), and the kernels the
+//! step launched (GPU backends; 0 on the CPU). `--launches` lists the most launched ones.
 
 #[path = "../../../tests/support/paths.rs"]
 mod paths;
 
+use cubecl::logging::{LaunchObservation, LaunchObserver};
 use envision4d_data::HostClip;
 use envision4d_model::bench::{arg, device_reserved_gib, peak_rss_gib};
 use envision4d_train::batch::Batch;
 use envision4d_train::config::{Init, Stage, Teacher};
 use envision4d_train::Trainer;
+use std::collections::BTreeMap;
 use std::path::Path;
+use std::sync::{Arc, Mutex};
 use std::time::Instant;
+
+/// The kernels a step launches on a CubeCL backend, by type name (CubeCL's launch
+/// observer; the CPU backend launches none). A GPU pays a fixed host cost per launch, so
+/// their number is the step's floor there whatever the device's speed.
+#[derive(Default)]
+struct Launches(Mutex<BTreeMap<&'static str, usize>>);
+
+impl LaunchObserver for Launches {
+    fn launched(&self, kernel: &'static str) {
+        *self.0.lock().unwrap().entry(kernel).or_default() += 1;
+    }
+}
+
+impl Launches {
+    fn total(&self) -> usize {
+        self.0.lock().unwrap().values().sum()
+    }
+
+    /// `--launches`: the most launched kernels, as `count name` lines (the type's last
+    /// path segment with its operator, `KernelBinop<MulOp>`).
+    fn print_top(&self, n: usize) {
+        let short = |name: &str| {
+            let (path, generics) = name.split_once('<').unwrap_or((name, ""));
+            let base = path.rsplit("::").next().unwrap_or(path);
+            let op = generics.split(['<', ',', '>']).next().unwrap_or("");
+            match op.rsplit("::").next() {
+                Some(op) if !op.is_empty() && op.len() < 24 => format!("{base}<{op}>"),
+                _ => base.to_owned(),
+            }
+        };
+        let mut rows: BTreeMap<String, usize> = BTreeMap::new();
+        for (name, count) in self.0.lock().unwrap().iter() {
+            *rows.entry(short(name)).or_default() += count;
+        }
+        let mut rows: Vec<(usize, String)> = rows.into_iter().map(|(k, n)| (n, k)).collect();
+        rows.sort_by(|a, b| b.0.cmp(&a.0).then_with(|| a.1.cmp(&b.1)));
+        for (count, name) in rows.into_iter().take(n) {
+            println!("#   {count:>7} {name}");
+        }
+    }
+}
+
+/// Kernels listed by `--launches` after each timed step.
+const TOP_KERNELS: usize = 16;
 
 /// A clip of `n` frames of uniform noise in [0, 1) (a fixed generator, so runs compare).
 fn noise_clip(n: usize, h: usize, w: usize, seed: u64) -> HostClip {
@@ -105,6 +153,7 @@ fn main() {
     let base = envision4d_model::bench::device(arg(&args, "--device").as_deref())
         .unwrap_or_else(|e| panic!("{e}"));
     let checkpointing = args.iter().any(|a| a == "--checkpointing");
+    let show_launches = args.iter().any(|a| a == "--launches");
     let device = if checkpointing {
         base.autodiff().gradient_checkpointing()
     } else {
@@ -153,6 +202,8 @@ fn main() {
         .unwrap_or_else(|e| panic!("{e}"));
     for i in 0..=repeats {
         trainer.step = step;
+        let launches = Arc::new(Launches::default());
+        let watching = LaunchObservation::new(launches.clone());
         let t = Instant::now();
         let r = trainer.train_step(&batch).unwrap_or_else(|e| panic!("{e}"));
         // The step reads its losses and checks back, but the optimizer's last update may
@@ -161,6 +212,7 @@ fn main() {
             .sync()
             .unwrap_or_else(|e| panic!("the device failed during a step: {e:?}"));
         let s = t.elapsed().as_secs_f64();
+        drop(watching);
         if i == 0 {
             println!(
                 "# untimed warm-up step: {s:.2} s, outcome {:?}, loss {:.4}, \
@@ -172,10 +224,15 @@ fn main() {
             continue;
         }
         println!(
-            "train_step_s={s:.4} peak_rss_gib={:.2} device_reserved_gib={:.2} outcome={:?}",
+            "train_step_s={s:.4} peak_rss_gib={:.2} device_reserved_gib={:.2} \
+             kernel_launches={} outcome={:?}",
             peak_rss_gib(),
             device_reserved_gib(&device),
+            launches.total(),
             r.outcome,
         );
+        if show_launches {
+            launches.print_top(TOP_KERNELS);
+        }
     }
 }

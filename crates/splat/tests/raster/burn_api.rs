@@ -363,7 +363,12 @@ fn cameras_are_read_once_and_mixed_float_types_still_render() {
         let before = host_readbacks();
         let out = render(&g, c, &cfg).expect("valid render");
         let reads = host_readbacks() - before;
-        let v = out.rgb.into_data().convert::<f32>().try_to_vec::<f32>().unwrap();
+        let v = out
+            .rgb
+            .into_data()
+            .convert::<f32>()
+            .try_to_vec::<f32>()
+            .unwrap();
         (v, reads)
     };
     let (want, reads) = rgb(&c);
