@@ -372,7 +372,7 @@ impl Trainer {
         }
         let (model, optim) = (self.model.clone(), self.optim.clone());
         self.model = self.optim.step(lr, self.model.clone(), grads);
-        if !params_finite(&self.model) {
+        if !params_finite(&self.model, &self.split.frozen) {
             self.model = model;
             self.optim = optim;
             self.skipped += 1;
