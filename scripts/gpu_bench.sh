@@ -138,10 +138,12 @@ for b in ${BACKENDS//,/ }; do
   for mode in $MODEL_MODES; do
     echo "== model $MODEL_PRESET at $MODEL_IMAGE, $mode, $b"
     if [ "$mode" = train ]; then
+      # --launches: the step's most launched kernels go to the log; their total to the row.
       line=$("$STEP" --config configs/waymo.toml --preset "$MODEL_PRESET" --image "$MODEL_IMAGE" \
-        --batch 1 --device "$b" --repeats 1 | tee -a /dev/stderr | grep -E '^train_step_s=' | tail -1) \
-        || line=""
-      row "$b" "$mode" "$line"
+        --batch 1 --device "$b" --repeats 1 --launches | tee -a /dev/stderr |
+        grep -E '^train_step_s=' | tail -1) || line=""
+      launches=$(echo "$line" | sed -n 's/.*kernel_launches=\([0-9]*\).*/\1/p')
+      row "$b" "$mode${launches:+, $launches kernel launches}" "$line"
     else
       for p in $PRECISIONS; do
         echo "== model $MODEL_PRESET at $MODEL_IMAGE, forward, aggregator in $p, $b"
