@@ -30,7 +30,10 @@ pub use config::{
 pub mod backend;
 pub mod render;
 
-pub use render::{render, render_each, Cameras, Gaussians, RenderError, RenderMeta, RenderOutput};
+pub use kernels::plan::KernelPlan;
+pub use render::{
+    kernel_plan, render, render_each, Cameras, Gaussians, RenderError, RenderMeta, RenderOutput,
+};
 pub mod testkit;
 pub mod views;
 

@@ -7,6 +7,7 @@
 use crate::backend::SplatOps;
 use crate::camera::{Camera, CameraError};
 use crate::config::RasterConfig;
+use crate::kernels::plan::KernelPlan;
 use crate::views::{HostCameras, ViewSets};
 use burn::backend::Dispatch;
 use burn::tensor::{s, Device, Int, Tensor, TensorData};
@@ -268,6 +269,14 @@ pub fn render_each(
         colors: field(|g| g.colors.clone()),
     };
     render_sets(&stacked, cameras, ViewSets::Stacked(rows), config)
+}
+
+/// The compositing kernels a render with `config` runs on `device` (its `Auto` settings
+/// resolved against what the device reports); `None` on the CPU backend, whose path has
+/// none of these choices.
+pub fn kernel_plan(device: &Device, config: &RasterConfig) -> Option<KernelPlan> {
+    let like = Tensor::<1>::zeros([1], device);
+    <Dispatch as SplatOps>::splat_kernel_plan(like.into_dispatch(), *config)
 }
 
 thread_local! {

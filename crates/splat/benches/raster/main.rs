@@ -8,7 +8,9 @@
 //! (`TileSchedule`; default `auto`); `--backward-bins keep,recompute` whether the backward
 //! reuses the forward's tile lists (`BackwardBins`; default `keep`); `--grad-adds
 //! auto,per-pixel,plane` how the backward adds a splat's gradient (`GradCombine`; default
-//! `auto`); every combination is timed. `--no-sort` skips the sort and scan table; `--kernels`
+//! `auto`); every combination is timed once (one that runs the kernels of an earlier row on
+//! that device is skipped with a comment line), and a row with an `auto` names what it
+//! resolved to (`wgpu (auto → per pixel, per-pixel adds, native atomics)`). `--no-sort` skips the sort and scan table; `--kernels`
 //! adds, per row, the device time of each kernel of one forward+backward
 //! ([`kernel_times`]).
 //! Prints ms per view and Gaussian-tile pairs per second, then the binning's building blocks
@@ -22,7 +24,7 @@ use burn::tensor::Device;
 use burn::tensor::{DType, Int, Tensor, TensorData};
 use envision4d_splat::primitives::{exclusive_scan, sort_pairs};
 use envision4d_splat::testkit::{look_at, HostScene, SplitMix64};
-use envision4d_splat::{render, Cameras, Gaussians};
+use envision4d_splat::{kernel_plan, render, BackwardBins, Cameras, Gaussians, KernelPlan};
 use std::time::{Duration, Instant};
 use variants::{device, variants, Variant};
 
@@ -193,15 +195,31 @@ fn main() {
         };
         variants.iter().take(take).map(move |v| (d, v))
     });
+    // Per backend, the kernel plans and bins already timed: a variant whose `auto` resolves
+    // to a row already there (on lavapipe, `auto` is the per-pixel schedule) is not timed
+    // twice.
+    let mut timed: Vec<(String, KernelPlan, BackwardBins)> = Vec::new();
     for ((backend, device), variant) in runs {
         let cfg = variant.config();
-        let (name, knobs) = if backend.starts_with("cpu") {
-            (backend.to_string(), Variant::json(None))
-        } else {
-            (
-                format!("{backend} ({})", variant.label()),
-                Variant::json(Some(variant)),
-            )
+        let plan = kernel_plan(device, &cfg);
+        if let Some(plan) = plan {
+            let key = (backend.to_string(), plan, cfg.backward_bins);
+            if timed.contains(&key) {
+                println!(
+                    "<!-- {backend} ({}) runs the kernels of a row above ({}): not timed again -->",
+                    variant.label(),
+                    plan.describe()
+                );
+                continue;
+            }
+            timed.push(key);
+        }
+        let (name, knobs) = match plan {
+            None => (backend.to_string(), Variant::json(None, None)),
+            Some(plan) => (
+                format!("{backend} ({})", variant.label_with(&plan)),
+                Variant::json(Some(variant), Some(&plan)),
+            ),
         };
         for &n in sizes.iter().filter(|n| **n <= max_n) {
             let scene = scene_of(&full, n);

@@ -4,7 +4,7 @@
 //! Every combination of the lists is one row set ([`variants`]).
 
 use burn::tensor::{Device, DeviceKind};
-use envision4d_splat::{BackwardBins, GradCombine, RasterConfig, TileSchedule};
+use envision4d_splat::{BackwardBins, GradCombine, KernelPlan, RasterConfig, TileSchedule};
 
 /// One combination of the three knobs, with the names the command line used.
 #[derive(Clone, Copy)]
@@ -38,21 +38,35 @@ impl Variant {
         label
     }
 
-    /// The JSON fields of this combination (`null` for the CPU, which has none of the knobs).
-    pub fn json(this: Option<&Self>) -> String {
+    /// [`Self::label`], with what an `auto` resolved to on the device:
+    /// `auto → per pixel, per-pixel adds, native atomics`.
+    pub fn label_with(&self, plan: &KernelPlan) -> String {
+        let auto = self.schedule.1 == TileSchedule::Auto || self.adds.1 == GradCombine::Auto;
+        if auto {
+            format!("{} → {}", self.label(), plan.describe())
+        } else {
+            self.label()
+        }
+    }
+
+    /// The JSON fields of this combination and the kernels it ran (`null` for the CPU,
+    /// which has none of the knobs).
+    pub fn json(this: Option<&Self>, plan: Option<&KernelPlan>) -> String {
         let field = |v: Option<&str>| v.map_or("null".to_owned(), |s| format!("\"{s}\""));
         format!(
-            "\"schedule\":{},\"backward_bins\":{},\"grad_adds\":{}",
+            "\"schedule\":{},\"backward_bins\":{},\"grad_adds\":{},\"kernels\":{}",
             field(this.map(|v| v.schedule.0)),
             field(this.map(|v| v.bins.0)),
             field(this.map(|v| v.adds.0)),
+            field(plan.map(KernelPlan::describe).as_deref()),
         )
     }
 }
 
 /// Every combination of the three lists on the command line (defaults `auto`, `keep`,
-/// `auto`), except that the per-pixel schedule takes only the first gradient-add mode: its
-/// units walk their lists apart, so plane sums never apply there and the rows would repeat.
+/// `auto`). Combinations that run the same kernels on a device (plane sums under the
+/// per-pixel schedule, which never applies them; an `auto` that resolves to an explicit
+/// row) are timed once: the bench compares their [`KernelPlan`]s.
 pub fn variants(arg: impl Fn(&str) -> Option<String>) -> Vec<Variant> {
     let list = |flag: &str, default: &str| arg(flag).unwrap_or_else(|| default.into());
     let schedules: Vec<_> = list("--schedules", "auto")
@@ -70,8 +84,7 @@ pub fn variants(arg: impl Fn(&str) -> Option<String>) -> Vec<Variant> {
     let mut all = Vec::new();
     for &schedule in &schedules {
         for &bins in &bins {
-            let per_pixel = schedule.1 == TileSchedule::PerPixel;
-            for &adds in &adds[..if per_pixel { 1 } else { adds.len() }] {
+            for &adds in &adds {
                 all.push(Variant {
                     schedule,
                     bins,

@@ -9,6 +9,7 @@
 
 use super::{Forward, SplatGrads, SplatKeep, SplatOps};
 use crate::config::{BackwardBins, RasterConfig};
+use crate::kernels::plan::KernelPlan;
 use crate::views::{HostCameras, ViewSets};
 use burn::backend::autodiff::checkpoint::{base::Checkpointer, strategy::CheckpointStrategy};
 use burn::backend::autodiff::grads::Gradients;
@@ -258,5 +259,9 @@ impl<B: SplatKeep, C: CheckpointStrategy> SplatOps for Autodiff<B, C> {
 
     fn splat_scan_wrapped(offsets: IntTensor<Self>) -> bool {
         B::splat_scan_wrapped(offsets)
+    }
+
+    fn splat_kernel_plan(like: FloatTensor<Self>, config: RasterConfig) -> Option<KernelPlan> {
+        B::splat_kernel_plan(like.into_primitive(), config)
     }
 }

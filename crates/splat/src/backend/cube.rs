@@ -7,6 +7,7 @@ use crate::config::RasterConfig;
 use crate::kernels::kept::ViewRender;
 use crate::kernels::launch::{self, Inputs};
 use crate::kernels::launch_backward;
+use crate::kernels::plan::KernelPlan;
 use crate::kernels::readback::read_u32s;
 use crate::kernels::sort;
 use crate::views::{HostCameras, ViewSets};
@@ -99,6 +100,10 @@ impl SplatOps for CubeBackend {
         let flag = launch::zeros_u32(&words, 1);
         sort::flag_wrapped(&words, n, &flag, 0);
         read_u32s(flag)[0] != 0
+    }
+
+    fn splat_kernel_plan(like: FloatTensor<Self>, config: RasterConfig) -> Option<KernelPlan> {
+        Some(KernelPlan::of(&like, &config))
     }
 }
 

@@ -17,6 +17,7 @@ mod keep;
 pub use keep::{Forward, SplatKeep};
 
 use crate::config::RasterConfig;
+use crate::kernels::plan::KernelPlan;
 use crate::views::{HostCameras, ViewSets};
 use burn::backend::tensor::{FloatTensor, IntTensor};
 use burn::backend::Backend;
@@ -121,6 +122,13 @@ pub trait SplatOps: Backend {
     /// flag on CubeCL backends.
     fn splat_scan_wrapped(offsets: IntTensor<Self>) -> bool {
         host_sort::scan_wrapped::<Self>(offsets)
+    }
+
+    /// The compositing kernels a render with `config` runs on the device of `like`; `None`
+    /// on the CPU path, which has one.
+    fn splat_kernel_plan(like: FloatTensor<Self>, config: RasterConfig) -> Option<KernelPlan> {
+        let _ = (like, config);
+        None
     }
 }
 

@@ -9,6 +9,7 @@
 use super::binning::{bins_of_view, order_view, DepthOrder};
 use super::kept::ViewRender;
 use super::math::CAM_LANES;
+use super::plan::KernelPlan;
 use super::project_forward::{project_forward, META_LANES, RECORD_LANES};
 use super::rasterize_forward::{rasterize_forward, OUT_CHANNELS, TILE};
 use super::rasterize_forward_per_pixel::rasterize_forward_per_pixel;
@@ -16,7 +17,7 @@ use super::readback::read_u32s;
 use super::sort::{empty_u32_for, retype};
 use super::view_meta::{view_counts, view_radii};
 use crate::camera::Camera;
-use crate::config::{RasterConfig, TileSchedule};
+use crate::config::RasterConfig;
 use crate::views::{HostCameras, ViewSets};
 use burn::backend::ops::{FloatTensorOps, IntTensorOps};
 use burn::backend::tensor::{FloatTensor, IntTensor};
@@ -321,17 +322,6 @@ fn write_view_meta(inp: &Inputs, v: usize, vb: &ViewBins, radii: &CubeTensor, co
     );
 }
 
-/// Whether the compositing kernels batch records through shared memory ([`TileSchedule`]).
-/// `Auto` batches on a card and not on a device that is none: CubeCL reports no physical
-/// device exactly for a software adapter (wgpu's `DeviceType::Cpu`, e.g. lavapipe).
-pub(super) fn shared_batches(like: &CubeTensor, schedule: TileSchedule) -> bool {
-    match schedule {
-        TileSchedule::SharedBatches => true,
-        TileSchedule::PerPixel => false,
-        TileSchedule::Auto => like.client.properties().identity.physical.is_some(),
-    }
-}
-
 /// One cube per tile, one unit per pixel. The cube is one-dimensional (unit = row x
 /// [`TILE`] + column): WGSL has subgroup ids only in one-dimensional workgroups, and the
 /// backward's plane sums need them.
@@ -355,7 +345,7 @@ fn composite(
     image: &CubeTensor,
     keep_ends: bool,
 ) {
-    let launch = if shared_batches(&inp.means, cfg.tile_schedule) {
+    let launch = if KernelPlan::of(&inp.means, cfg).shared_batches {
         rasterize_forward::launch
     } else {
         rasterize_forward_per_pixel::launch

@@ -6,45 +6,22 @@
 
 use super::camera_grad::camera_grad_matrices;
 use super::kept::ViewRender;
-use super::launch::{
-    flat, recomputed_views, shared_batches, tile_grid, view_offset, zeros, Inputs,
-};
+use super::launch::{flat, recomputed_views, tile_grid, view_offset, zeros, Inputs};
+use super::plan::KernelPlan;
 use super::project_backward::{project_backward, CAM_GRAD_LANES};
 use super::project_forward::RECORD_LANES;
 use super::rasterize_backward::rasterize_backward;
 use super::rasterize_backward_per_pixel::rasterize_backward_per_pixel;
 use super::splat_grad::{CasAdd, NativeAdd};
 use crate::backend::SplatGrads;
-use crate::config::{GradCombine, RasterConfig};
+use crate::config::RasterConfig;
 use burn::backend::ops::FloatTensorOps;
 use burn::backend::tensor::FloatTensor;
 use burn::tensor::{DType, Shape};
 use burn_cubecl::kernel::into_contiguous;
 use burn_cubecl::ops::numeric::empty_device_dtype;
-use burn_cubecl::tensor::CubeTensor;
 use burn_cubecl::CubeBackend;
-use cubecl::features::{AtomicUsage, Plane};
-use cubecl::ir::{ElemType, FloatKind, Type};
 use cubecl::{calculate_cube_count_elemwise, CubeCount, CubeDim};
-
-fn has_float_atomic_add(t: &CubeTensor) -> bool {
-    t.client
-        .properties()
-        .atomic_type_usage(Type::atomic(ElemType::Float(FloatKind::F32)))
-        .contains(AtomicUsage::Add)
-}
-
-/// Whether the batched backward sums each splat's gradient over a plane before adding it
-/// ([`GradCombine`]; `Auto` where the device reports plane operations); never with the
-/// per-pixel schedule, whose units walk their lists apart.
-fn plane_sums(combine: GradCombine, batched: bool, plane_ops: bool) -> bool {
-    batched
-        && match combine {
-            GradCombine::PlaneSums => true,
-            GradCombine::PerPixel => false,
-            GradCombine::Auto => plane_ops,
-        }
-}
 
 /// `splat_backward` on the GPU; `shapes` are the seven input shapes for the outputs. `kept`
 /// is every view as the forward composited it ([`super::launch::forward`] with `keep`);
@@ -65,18 +42,11 @@ pub fn backward(
         zeros(&inp.means, v_count * 16),
         zeros(&inp.means, v_count * 9),
     );
-    let native = has_float_atomic_add(&inp.means)
-        && cfg.grad_accumulation != crate::config::GradAccumulation::CompareAndSwap;
-    let batched = shared_batches(&inp.means, cfg.tile_schedule);
-    let plane_features = inp.means.client.properties().features.plane;
-    let plane = plane_sums(
-        cfg.grad_combine,
-        batched,
-        plane_features.contains(Plane::Ops),
-    );
-    // A plane barrier before each vote and sum where the device has one (CUDA; see
-    // `plane_step`).
-    let plane_sync = plane && plane_features.contains(Plane::Sync);
+    // With plane sums, a plane barrier before each vote and sum where the device has one
+    // (CUDA; see `plane_step`).
+    let plan = KernelPlan::of(&inp.means, cfg);
+    let (native, batched) = (plan.native_atomics, plan.shared_batches);
+    let (plane, plane_sync) = (plan.plane_sums, plan.plane_sync);
     let views = kept.unwrap_or_else(|| recomputed_views(inp, cfg));
     for (v, view) in views.into_iter().enumerate() {
         if let Some(vb) = view {
@@ -169,30 +139,5 @@ pub fn backward(
         colors: CubeBackend::float_reshape(g_colors, s_c),
         viewmats: CubeBackend::float_reshape(g_viewmats, s_v),
         ks: CubeBackend::float_reshape(g_ks, s_k),
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::plane_sums;
-    use crate::config::GradCombine::{Auto, PerPixel, PlaneSums};
-
-    /// Guards the gradient-add choice: plane sums never under the per-pixel schedule (its
-    /// units are not at the same splat, so a plane sum would mix splats), `Auto` exactly
-    /// where the device reports plane operations, the explicit modes as asked.
-    #[test]
-    fn plane_sums_only_with_shared_batches() {
-        for combine in [Auto, PerPixel, PlaneSums] {
-            for plane_ops in [false, true] {
-                assert!(
-                    !plane_sums(combine, false, plane_ops),
-                    "{combine:?}, per pixel"
-                );
-            }
-        }
-        assert!(plane_sums(Auto, true, true));
-        assert!(!plane_sums(Auto, true, false));
-        assert!(plane_sums(PlaneSums, true, false));
-        assert!(!plane_sums(PerPixel, true, true));
     }
 }

@@ -30,6 +30,7 @@ pub mod kept;
 pub mod launch;
 pub mod launch_backward;
 pub mod math;
+pub mod plan;
 pub mod project_backward;
 pub mod project_forward;
 pub mod radix_sort;

@@ -5,11 +5,14 @@
 
 use crate::common::View;
 use crate::wgpu_parity::{check_parity, compare, run, t, two_views, weights};
+use burn::tensor::Device;
 use cubecl::logging::{LaunchObservation, LaunchObserver};
 use envision4d_splat::testkit::{
     intrinsics, look_at, random_scene, wgpu_test_device, HostScene, SceneSpec,
 };
-use envision4d_splat::{render, BackwardBins, Cameras, Gaussians, RasterConfig, TileSchedule};
+use envision4d_splat::{
+    kernel_plan, render, BackwardBins, Cameras, Gaussians, RasterConfig, TileSchedule,
+};
 use std::collections::BTreeSet;
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::sync::{Arc, Mutex};
@@ -178,7 +181,8 @@ impl LaunchObserver for Composited {
 
 /// Guards the tile schedule's plumbing: `Auto` on lavapipe (a device that is no card) must
 /// run the per-pixel compositing kernels, about twice as fast there, and `SharedBatches` the
-/// batched ones a GPU runs, in the forward and the backward alike.
+/// batched ones a GPU runs, in the forward and the backward alike; and `kernel_plan`, which
+/// the bench reports, says what ran (on the autodiff device too; `None` on the CPU).
 #[test]
 fn wgpu_tile_schedule_picks_the_compositing_kernels() {
     let Some(gpu) = wgpu_test_device() else {
@@ -208,5 +212,13 @@ fn wgpu_tile_schedule_picks_the_compositing_kernels() {
         drop(watching);
         let kernels: Vec<String> = seen.kernels.lock().unwrap().iter().cloned().collect();
         assert_eq!(kernels, want, "{schedule:?} launched {kernels:?}");
+        let plan = kernel_plan(&gpu, &cfg).expect("a plan on wgpu");
+        assert_eq!(
+            plan.shared_batches,
+            want == batched,
+            "{schedule:?}: {plan:?}"
+        );
+        assert_eq!(kernel_plan(&gpu.clone().autodiff(), &cfg), Some(plan));
+        assert_eq!(kernel_plan(&Device::flex(), &cfg), None);
     }
 }
