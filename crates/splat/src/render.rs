@@ -10,7 +10,7 @@ use crate::config::RasterConfig;
 use crate::kernels::plan::KernelPlan;
 use crate::views::{HostCameras, ViewSets};
 use burn::backend::Dispatch;
-use burn::tensor::{s, Device, Int, Tensor, TensorData};
+use burn::tensor::{s, DType, Device, Int, Tensor, TensorData};
 
 /// Gaussians with activations applied (what gsplat's `rasterization` takes).
 #[derive(Debug, Clone)]
@@ -207,8 +207,10 @@ fn validate_sets(
 
 /// Reads the `[V, 4, 4]` view matrices and `[V, 3, 3]` intrinsics back in one transfer: the
 /// two flattened into one `[25 V]` vector on the device (detached, so no autodiff node is
-/// recorded), since on a GPU every read waits for the queue to drain up to the cameras. Two
-/// reads only when the two tensors have different float types (f64 ones must stay exact).
+/// recorded), since on a GPU every read waits for the queue to drain up to the cameras.
+/// Only f32 cameras on one device are joined, the ones the GPU kernels take: other float
+/// types render on the host path (and a device may lack a kernel in them, f64 on many
+/// wgpu adapters), so they, and an empty set, are read as two tensors.
 fn read_cameras(cameras: &Cameras, v: usize) -> Result<(Vec<f64>, Vec<f64>), RenderError> {
     let host = |d: TensorData| -> Result<Vec<f64>, RenderError> {
         d.convert::<f64>()
@@ -219,7 +221,11 @@ fn read_cameras(cameras: &Cameras, v: usize) -> Result<(Vec<f64>, Vec<f64>), Ren
         cameras.viewmats.clone().detach(),
         cameras.ks.clone().detach(),
     );
-    if viewmats.dtype() != ks.dtype() {
+    let joinable = viewmats.dtype() == DType::F32
+        && ks.dtype() == DType::F32
+        && viewmats.device() == ks.device()
+        && v > 0;
+    if !joinable {
         crate::kernels::readback::count_camera_reads(2);
         return Ok((host(viewmats.to_data())?, host(ks.to_data())?));
     }

@@ -27,49 +27,55 @@
 #[path = "../../../tests/support/paths.rs"]
 mod paths;
 
+use cubecl::config::{type_name_format, TypeNameFormatLevel};
 use cubecl::logging::{LaunchObservation, LaunchObserver};
 use envision4d_data::HostClip;
 use envision4d_model::bench::{arg, device_reserved_gib, peak_rss_gib};
 use envision4d_train::batch::Batch;
 use envision4d_train::config::{Init, Stage, Teacher};
 use envision4d_train::Trainer;
-use std::collections::BTreeMap;
+use std::collections::HashMap;
 use std::path::Path;
+use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
-/// The kernels a step launches on a CubeCL backend, by type name (CubeCL's launch
-/// observer; the CPU backend launches none). A GPU pays a fixed host cost per launch, so
-/// their number is the step's floor there whatever the device's speed.
-#[derive(Default)]
-struct Launches(Mutex<BTreeMap<&'static str, usize>>);
+/// The kernels a step launches on a CubeCL backend (CubeCL's launch observer; the CPU
+/// backend launches none). A GPU pays a fixed host cost per launch, so their number is the
+/// step's floor there whatever the device's speed. The observer runs inside the timed step,
+/// so it only counts, unless `--launches` asks for names: then each launch also takes a
+/// lock and a map entry keyed by the name's address (a type name is one static string).
+struct Launches {
+    total: AtomicUsize,
+    by_name: Option<Mutex<HashMap<usize, (&'static str, usize)>>>,
+}
 
 impl LaunchObserver for Launches {
     fn launched(&self, kernel: &'static str) {
-        *self.0.lock().unwrap().entry(kernel).or_default() += 1;
+        self.total.fetch_add(1, Ordering::Relaxed);
+        if let Some(map) = &self.by_name {
+            let mut map = map.lock().unwrap();
+            map.entry(kernel.as_ptr() as usize).or_insert((kernel, 0)).1 += 1;
+        }
     }
 }
 
 impl Launches {
-    fn total(&self) -> usize {
-        self.0.lock().unwrap().values().sum()
+    fn new(named: bool) -> Self {
+        Launches {
+            total: AtomicUsize::new(0),
+            by_name: named.then(Default::default),
+        }
     }
 
-    /// `--launches`: the most launched kernels, as `count name` lines (the type's last
-    /// path segment with its operator, `KernelBinop<MulOp>`).
+    /// The most launched kernels, as `count name` lines (CubeCL's balanced type names).
     fn print_top(&self, n: usize) {
-        let short = |name: &str| {
-            let (path, generics) = name.split_once('<').unwrap_or((name, ""));
-            let base = path.rsplit("::").next().unwrap_or(path);
-            let op = generics.split(['<', ',', '>']).next().unwrap_or("");
-            match op.rsplit("::").next() {
-                Some(op) if !op.is_empty() && op.len() < 24 => format!("{base}<{op}>"),
-                _ => base.to_owned(),
-            }
-        };
-        let mut rows: BTreeMap<String, usize> = BTreeMap::new();
-        for (name, count) in self.0.lock().unwrap().iter() {
-            *rows.entry(short(name)).or_default() += count;
+        let Some(map) = &self.by_name else { return };
+        let mut rows: HashMap<String, usize> = HashMap::new();
+        for &(name, count) in map.lock().unwrap().values() {
+            *rows
+                .entry(type_name_format(name, TypeNameFormatLevel::Balanced))
+                .or_default() += count;
         }
         let mut rows: Vec<(usize, String)> = rows.into_iter().map(|(k, n)| (n, k)).collect();
         rows.sort_by(|a, b| b.0.cmp(&a.0).then_with(|| a.1.cmp(&b.1)));
@@ -202,7 +208,7 @@ fn main() {
         .unwrap_or_else(|e| panic!("{e}"));
     for i in 0..=repeats {
         trainer.step = step;
-        let launches = Arc::new(Launches::default());
+        let launches = Arc::new(Launches::new(show_launches));
         let watching = LaunchObservation::new(launches.clone());
         let t = Instant::now();
         let r = trainer.train_step(&batch).unwrap_or_else(|e| panic!("{e}"));
@@ -228,7 +234,7 @@ fn main() {
              kernel_launches={} outcome={:?}",
             peak_rss_gib(),
             device_reserved_gib(&device),
-            launches.total(),
+            launches.total.load(Ordering::Relaxed),
             r.outcome,
         );
         if show_launches {

@@ -122,9 +122,10 @@ struct NonFinite<'a> {
     skip: Option<&'a HashSet<ParamId>>,
     /// `Σ x·0` over every tensor seen, on the device (one host sync at the end): `x·0` is
     /// exactly 0 for every finite `x` and NaN for ±inf and NaN, so the total is 0 or NaN,
-    /// and no magnitude can overflow it (a plain sum of large finite values could). Three
-    /// kernels per tensor (multiply, sum, accumulate); `is_finite().bool_not().float()`
-    /// took about nine on a GPU backend, over every parameter tensor twice per step.
+    /// and no magnitude can overflow it (a plain sum of large finite values could). Three or
+    /// four kernels per tensor (multiply, sum, perhaps the sum's zero fill, accumulate);
+    /// `is_finite().bool_not().float().sum()` took about nine on a GPU backend, over every
+    /// parameter tensor twice per step.
     bad: Option<Tensor<1>>,
 }
 
@@ -220,31 +221,38 @@ mod tests {
 
     /// Guards the finite checks of a step: NaN, +inf and -inf in any tensor are found, huge
     /// finite values (whose plain sum overflows f32) are not taken for infinities, and the
-    /// post-update check skips exactly the frozen parameters.
+    /// post-update check skips exactly the frozen parameters; on the CPU and on wgpu
+    /// (lavapipe in CI), whose autotuned sums must carry a NaN through too.
     #[test]
     fn finite_checks_find_every_non_finite_and_only_those() {
-        let device = Device::flex();
+        let gpu = envision4d_splat::testkit::wgpu_test_device();
+        for device in std::iter::once(Device::flex()).chain(gpu) {
+            finite_checks_on(&device);
+        }
+    }
+
+    fn finite_checks_on(device: &Device) {
         let huge = vec![f32::MAX, f32::MAX, -f32::MAX, 3.0e38];
         let none = HashSet::new();
         assert!(params_finite(
-            &two(huge.clone(), vec![1.0, -0.0], &device),
+            &two(huge.clone(), vec![1.0, -0.0], device),
             &none
         ));
         for bad in [f32::NAN, f32::INFINITY, f32::NEG_INFINITY] {
             let mut b = vec![0.5, 2.0, -1.0];
             b[1] = bad;
-            let m = two(huge.clone(), b, &device);
+            let m = two(huge.clone(), b, device);
             assert!(!params_finite(&m, &none), "{bad} in b not found");
-            let frozen: HashSet<ParamId> = [m.b.id].into_iter().collect();
+            let frozen = HashSet::from([m.b.id]);
             assert!(params_finite(&m, &frozen), "{bad} in frozen b was checked");
-            let frozen: HashSet<ParamId> = [m.a.id].into_iter().collect();
+            let frozen = HashSet::from([m.a.id]);
             assert!(
                 !params_finite(&m, &frozen),
                 "{bad} in b skipped with a frozen"
             );
         }
         // Gradients: the loss x·b reaches b only, with gradient x (here +inf at one entry).
-        let ad = device.autodiff();
+        let ad = device.clone().autodiff();
         let m = two(vec![1.0], vec![1.0, 1.0], &ad);
         let x = Tensor::from_data(TensorData::new(vec![2.0f32, f32::INFINITY], [2]), &ad);
         let grads = (m.b.val() * x).sum().backward();

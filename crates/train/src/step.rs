@@ -347,8 +347,8 @@ impl Trainer {
     }
 
     /// Measures (the gradient norms, before clipping, returned for the log), clips (global
-    /// norm, when configured) and applies `grads`; an update that leaves any parameter
-    /// non-finite is rolled back (model and Adam state) and counted as skipped, so a
+    /// norm, when configured) and applies `grads`; an update that leaves any trainable
+    /// parameter non-finite is rolled back (model and Adam state) and counted as skipped, so a
     /// checkpoint never holds exploded weights.
     pub(crate) fn apply(
         &mut self,

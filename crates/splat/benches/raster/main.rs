@@ -8,8 +8,8 @@
 //! (`TileSchedule`; default `auto`); `--backward-bins keep,recompute` whether the backward
 //! reuses the forward's tile lists (`BackwardBins`; default `keep`); `--grad-adds
 //! auto,per-pixel,plane` how the backward adds a splat's gradient (`GradCombine`; default
-//! `auto`); every combination is timed once (one that runs the kernels of an earlier row on
-//! that device is skipped with a comment line), and a row with an `auto` names what it
+//! `auto`); every combination is timed once (one that runs the kernels of an earlier row
+//! on that device is skipped, said on stderr), and a row with an `auto` names what it
 //! resolved to (`wgpu (auto → per pixel, per-pixel adds, native atomics)`). `--no-sort` skips the sort and scan table; `--kernels`
 //! adds, per row, the device time of each kernel of one forward+backward
 //! ([`kernel_times`]).
@@ -205,8 +205,9 @@ fn main() {
         if let Some(plan) = plan {
             let key = (backend.to_string(), plan, cfg.backward_bins);
             if timed.contains(&key) {
-                println!(
-                    "<!-- {backend} ({}) runs the kernels of a row above ({}): not timed again -->",
+                // To stderr: a line inside the Markdown table would end it.
+                eprintln!(
+                    "{backend} ({}) runs the kernels of a row above ({}): not timed again",
                     variant.label(),
                     plan.describe()
                 );

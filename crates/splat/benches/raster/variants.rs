@@ -1,7 +1,8 @@
 //! The GPU settings the bench times, each a speed-only knob of `RasterConfig` (results agree
 //! to rounding): the tile schedule (`--schedules`), what the forward keeps for the backward
 //! (`--backward-bins`) and how the backward's units add a splat's gradient (`--grad-adds`).
-//! Every combination of the lists is one row set ([`variants`]).
+//! Every combination of the lists is one row set ([`variants`]), unless it runs the kernels
+//! of an earlier one.
 
 use burn::tensor::{Device, DeviceKind};
 use envision4d_splat::{BackwardBins, GradCombine, KernelPlan, RasterConfig, TileSchedule};
