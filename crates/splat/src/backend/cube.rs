@@ -4,6 +4,7 @@
 
 use super::{host, host_sort, Forward, SplatGrads, SplatKeep, SplatOps};
 use crate::config::RasterConfig;
+use crate::kernels::buffers;
 use crate::kernels::kept::ViewRender;
 use crate::kernels::launch::{self, Inputs};
 use crate::kernels::launch_backward;
@@ -97,7 +98,7 @@ impl SplatOps for CubeBackend {
             return false;
         }
         let words = words(offsets);
-        let flag = launch::zeros_u32(&words, 1);
+        let flag = buffers::zeros_u32(&words, 1);
         sort::flag_wrapped(&words, n, &flag, 0);
         read_u32s(flag)[0] != 0
     }

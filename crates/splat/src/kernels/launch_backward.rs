@@ -4,9 +4,10 @@
 //! tile lists and pixel ends are the forward's where it kept them (`kept`), else recomputed
 //! with the forward's code (`launch.rs`).
 
+use super::buffers::{flat, zeros};
 use super::camera_grad::camera_grad_matrices;
 use super::kept::ViewRender;
-use super::launch::{flat, recomputed_views, tile_grid, view_offset, zeros, Inputs};
+use super::launch::{recomputed_views, tile_grid, view_offset, Inputs};
 use super::plan::KernelPlan;
 use super::project_backward::{project_backward, CAM_GRAD_LANES};
 use super::project_forward::RECORD_LANES;

@@ -24,6 +24,7 @@
 
 pub mod bin_tiles;
 pub mod binning;
+pub mod buffers;
 pub mod camera_grad;
 pub mod geometry;
 pub mod kept;

@@ -33,7 +33,7 @@ pub fn empty_u32(like: &CubeTensor, len: usize) -> CubeTensor {
 
 /// [`empty_u32`] for a buffer that the size check's message calls `what`.
 pub fn empty_u32_for(like: &CubeTensor, what: &str, len: usize) -> CubeTensor {
-    super::launch::check_binding(like, what, len);
+    super::buffers::check_binding(like, what, len);
     empty_device_dtype(
         like.client.clone(),
         like.device.clone(),
