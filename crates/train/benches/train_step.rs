@@ -68,14 +68,21 @@ impl Launches {
         }
     }
 
-    /// The most launched kernels, as `count name` lines (CubeCL's balanced type names).
+    /// The most launched kernels, as `count name` lines: CubeCL's balanced type name up to
+    /// its first generic argument (`KernelBinop | MulOp`; a matrix product's full name runs
+    /// to two dozen arguments, so its variants are summed under one line).
     fn print_top(&self, n: usize) {
         let Some(map) = &self.by_name else { return };
         let mut rows: HashMap<String, usize> = HashMap::new();
         for &(name, count) in map.lock().unwrap().values() {
-            *rows
-                .entry(type_name_format(name, TypeNameFormatLevel::Balanced))
-                .or_default() += count;
+            let balanced = type_name_format(name, TypeNameFormatLevel::Balanced);
+            let short: Vec<&str> = balanced
+                .split(" | ")
+                .map(str::trim)
+                .filter(|part| !part.is_empty())
+                .take(2)
+                .collect();
+            *rows.entry(short.join(" | ")).or_default() += count;
         }
         let mut rows: Vec<(usize, String)> = rows.into_iter().map(|(k, n)| (n, k)).collect();
         rows.sort_by(|a, b| b.0.cmp(&a.0).then_with(|| a.1.cmp(&b.1)));
