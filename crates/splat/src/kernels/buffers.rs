@@ -39,21 +39,20 @@ pub(crate) fn upload_f32(like: &CubeTensor, v: Vec<f32>) -> CubeTensor {
 
 /// A zero-filled u32 buffer of `len` elements.
 pub(crate) fn zeros_u32(like: &CubeTensor, len: usize) -> CubeTensor {
-    check_binding(like, "output", len);
-    zeros_client(
-        like.client.clone(),
-        like.device.clone(),
-        Shape::new([len]),
-        DType::U32,
-    )
+    zeros_of(like, len, DType::U32)
 }
 
+/// A zero-filled f32 buffer of `len` elements.
 pub(crate) fn zeros(like: &CubeTensor, len: usize) -> CubeTensor {
+    zeros_of(like, len, DType::F32)
+}
+
+fn zeros_of(like: &CubeTensor, len: usize, dtype: DType) -> CubeTensor {
     check_binding(like, "output", len);
     zeros_client(
         like.client.clone(),
         like.device.clone(),
         Shape::new([len]),
-        DType::F32,
+        dtype,
     )
 }
