@@ -138,7 +138,7 @@ for b in ${BACKENDS//,/ }; do
   for mode in $MODEL_MODES; do
     echo "== model $MODEL_PRESET at $MODEL_IMAGE, $mode, $b"
     if [ "$mode" = train ]; then
-      # --launches: the step's most launched kernels go to the log; their total to the row.
+      # --launches: the most launched kernels go to the log; their total to the row.
       line=$("$STEP" --config configs/waymo.toml --preset "$MODEL_PRESET" --image "$MODEL_IMAGE" \
         --batch 1 --device "$b" --repeats 1 --launches | tee -a /dev/stderr |
         grep -E '^train_step_s=' | tail -1) || line=""
@@ -148,9 +148,10 @@ for b in ${BACKENDS//,/ }; do
       for p in $PRECISIONS; do
         echo "== model $MODEL_PRESET at $MODEL_IMAGE, forward, aggregator in $p, $b"
         line=$("$FWD" --preset "$MODEL_PRESET" --image "$MODEL_IMAGE" --device "$b" \
-          --mode "$mode" --precision "$p" --repeats 1 | tee -a /dev/stderr |
+          --mode "$mode" --precision "$p" --repeats 1 --launches | tee -a /dev/stderr |
           grep -E '^forward_warm_s=' | tail -1) || line=""
-        row "$b" "$mode ($p)" "$line"
+        launches=$(echo "$line" | sed -n 's/.*kernel_launches=\([0-9]*\).*/\1/p')
+        row "$b" "$mode ($p)${launches:+, $launches kernel launches}" "$line"
       done
     fi
   done

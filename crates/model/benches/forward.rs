@@ -5,11 +5,13 @@
 //! cargo bench -p envision4d-model --bench forward -- [--preset paper|tiny]
 //!     [--mode forward|train] [--heads all|none|depth|gaussians|motion] [--image HxW]
 //!     [--future N] [--images FILE.safetensors] [--repeats N] [--chunk N] [--profile]
-//!     [--device cpu|wgpu|cuda] [--precision f32|f16|bf16]
+//!     [--device cpu|wgpu|cuda] [--precision f32|f16|bf16] [--launches]
 //! ```
 //!
 //! The peak RSS is the host process's; on a GPU `device_reserved_gib` is the device memory
-//! pool's reserved bytes after the pass (`nan` on the CPU, whose memory is the RSS).
+//! pool's reserved bytes after the pass (`nan` on the CPU, whose memory is the RSS), and
+//! `kernel_launches` the kernels the pass launched (0 on the CPU; `--launches` lists the
+//! most launched ones).
 //!
 //! The weights are drawn (and every lazy parameter materialised) before any clock starts,
 //! then one untimed pass warms the allocator and the thread pool. Each timed pass prints a
@@ -23,11 +25,14 @@
 
 use burn::module::{Module, ModuleVisitor, Param};
 use burn::tensor::{Device, Distribution, Tensor, TensorData};
-use envision4d_model::bench::{arg, device_reserved_gib, peak_rss_gib};
+use envision4d_model::bench::{arg, count_launches, device_reserved_gib, peak_rss_gib};
 use envision4d_model::model::{Heads, Predictions};
 use envision4d_model::precision::Precision;
 use envision4d_model::{Envision4d, ModelConfig};
 use std::time::Instant;
+
+/// Kernels listed by `--launches` after each timed pass.
+const TOP_KERNELS: usize = 16;
 
 /// Touches every parameter so that lazy initialisation (drawing random weights) happens
 /// here and not inside the first timed pass.
@@ -182,14 +187,17 @@ fn main() {
     } else {
         "forward_warm_s"
     };
+    let show_launches = args.iter().any(|a| a == "--launches");
     pass(&model, &images, heads, train); // untimed warm-up
     for _ in 0..repeats {
-        let s = pass(&model, &images, heads, train);
+        let (s, launches) = count_launches(show_launches, || pass(&model, &images, heads, train));
         println!(
-            "{label}={s:.4} peak_rss_gib={:.2} device_reserved_gib={:.2}",
+            "{label}={s:.4} peak_rss_gib={:.2} device_reserved_gib={:.2} kernel_launches={}",
             peak_rss_gib(),
-            device_reserved_gib(&device)
+            device_reserved_gib(&device),
+            launches.total()
         );
+        launches.print_top(TOP_KERNELS);
     }
     if args.iter().any(|a| a == "--profile") {
         let only = |depth, gaussians, motion| Heads {

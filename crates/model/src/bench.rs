@@ -1,7 +1,13 @@
 //! What the benchmark binaries (this crate's `forward`, the train crate's `train_step`)
-//! share: their argument lookup, device by name, and the two memory figures they print.
+//! share: their argument lookup, device by name, the two memory figures they print, and
+//! the count of kernel launches.
 
 use burn::tensor::Device;
+use cubecl::config::{type_name_format, TypeNameFormatLevel};
+use cubecl::logging::{LaunchObservation, LaunchObserver};
+use std::collections::HashMap;
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::{Arc, Mutex};
 
 /// The value after `name` in `args` (`--image 350x518`), if any.
 pub fn arg(args: &[String], name: &str) -> Option<String> {
@@ -48,4 +54,73 @@ pub fn device_reserved_gib(device: &Device) -> f64 {
     device
         .memory_pool_usage()
         .map_or(f64::NAN, |u| u.bytes_reserved as f64 / (1u64 << 30) as f64)
+}
+
+/// The kernels a pass launches on a CubeCL backend (CubeCL's launch observer; the CPU
+/// backend launches none). A GPU pays a fixed host cost per launch, so their number is a
+/// floor on the pass's time there whatever the device's speed. The observer runs inside the
+/// timed pass, so it only counts unless asked for names (the benches' `--launches`): then
+/// each launch also takes a lock and a map entry keyed by the name's address (a type name
+/// is one static string).
+pub struct Launches {
+    total: AtomicUsize,
+    by_name: Option<Mutex<HashMap<usize, (&'static str, usize)>>>,
+}
+
+impl LaunchObserver for Launches {
+    fn launched(&self, kernel: &'static str) {
+        self.total.fetch_add(1, Ordering::Relaxed);
+        if let Some(map) = &self.by_name {
+            let mut map = map.lock().unwrap();
+            map.entry(kernel.as_ptr() as usize).or_insert((kernel, 0)).1 += 1;
+        }
+    }
+}
+
+impl Launches {
+    /// Launches counted so far.
+    pub fn total(&self) -> usize {
+        self.total.load(Ordering::Relaxed)
+    }
+
+    /// A counter (`named`: also by kernel, for [`Self::print_top`]).
+    pub fn new(named: bool) -> Self {
+        Launches {
+            total: AtomicUsize::new(0),
+            by_name: named.then(Default::default),
+        }
+    }
+
+    /// The most launched kernels, as `count name` lines: CubeCL's balanced type name up to
+    /// its first generic argument (`KernelBinop | MulOp`; a matrix product's full name runs
+    /// to two dozen arguments, so its variants are summed under one line). Nothing for a
+    /// counter without names.
+    pub fn print_top(&self, n: usize) {
+        let Some(map) = &self.by_name else { return };
+        let mut rows: HashMap<String, usize> = HashMap::new();
+        for &(name, count) in map.lock().unwrap().values() {
+            let balanced = type_name_format(name, TypeNameFormatLevel::Balanced);
+            let short: Vec<&str> = balanced
+                .split(" | ")
+                .map(str::trim)
+                .filter(|part| !part.is_empty())
+                .take(2)
+                .collect();
+            *rows.entry(short.join(" | ")).or_default() += count;
+        }
+        let mut rows: Vec<(usize, String)> = rows.into_iter().map(|(k, n)| (n, k)).collect();
+        rows.sort_by(|a, b| b.0.cmp(&a.0).then_with(|| a.1.cmp(&b.1)));
+        for (count, name) in rows.into_iter().take(n) {
+            println!("#   {count:>7} {name}");
+        }
+    }
+}
+
+/// Runs `pass` with its kernel launches counted (`named`: by kernel too).
+pub fn count_launches<T>(named: bool, pass: impl FnOnce() -> T) -> (T, Arc<Launches>) {
+    let launches = Arc::new(Launches::new(named));
+    let watching = LaunchObservation::new(launches.clone());
+    let out = pass();
+    drop(watching);
+    (out, launches)
 }

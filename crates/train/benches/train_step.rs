@@ -27,70 +27,13 @@
 #[path = "../../../tests/support/paths.rs"]
 mod paths;
 
-use cubecl::config::{type_name_format, TypeNameFormatLevel};
-use cubecl::logging::{LaunchObservation, LaunchObserver};
 use envision4d_data::HostClip;
-use envision4d_model::bench::{arg, device_reserved_gib, peak_rss_gib};
+use envision4d_model::bench::{arg, count_launches, device_reserved_gib, peak_rss_gib};
 use envision4d_train::batch::Batch;
 use envision4d_train::config::{Init, Stage, Teacher};
 use envision4d_train::Trainer;
-use std::collections::HashMap;
 use std::path::Path;
-use std::sync::atomic::{AtomicUsize, Ordering};
-use std::sync::{Arc, Mutex};
 use std::time::Instant;
-
-/// The kernels a step launches on a CubeCL backend (CubeCL's launch observer; the CPU
-/// backend launches none). A GPU pays a fixed host cost per launch, so their number is the
-/// step's floor there whatever the device's speed. The observer runs inside the timed step,
-/// so it only counts, unless `--launches` asks for names: then each launch also takes a
-/// lock and a map entry keyed by the name's address (a type name is one static string).
-struct Launches {
-    total: AtomicUsize,
-    by_name: Option<Mutex<HashMap<usize, (&'static str, usize)>>>,
-}
-
-impl LaunchObserver for Launches {
-    fn launched(&self, kernel: &'static str) {
-        self.total.fetch_add(1, Ordering::Relaxed);
-        if let Some(map) = &self.by_name {
-            let mut map = map.lock().unwrap();
-            map.entry(kernel.as_ptr() as usize).or_insert((kernel, 0)).1 += 1;
-        }
-    }
-}
-
-impl Launches {
-    fn new(named: bool) -> Self {
-        Launches {
-            total: AtomicUsize::new(0),
-            by_name: named.then(Default::default),
-        }
-    }
-
-    /// The most launched kernels, as `count name` lines: CubeCL's balanced type name up to
-    /// its first generic argument (`KernelBinop | MulOp`; a matrix product's full name runs
-    /// to two dozen arguments, so its variants are summed under one line).
-    fn print_top(&self, n: usize) {
-        let Some(map) = &self.by_name else { return };
-        let mut rows: HashMap<String, usize> = HashMap::new();
-        for &(name, count) in map.lock().unwrap().values() {
-            let balanced = type_name_format(name, TypeNameFormatLevel::Balanced);
-            let short: Vec<&str> = balanced
-                .split(" | ")
-                .map(str::trim)
-                .filter(|part| !part.is_empty())
-                .take(2)
-                .collect();
-            *rows.entry(short.join(" | ")).or_default() += count;
-        }
-        let mut rows: Vec<(usize, String)> = rows.into_iter().map(|(k, n)| (n, k)).collect();
-        rows.sort_by(|a, b| b.0.cmp(&a.0).then_with(|| a.1.cmp(&b.1)));
-        for (count, name) in rows.into_iter().take(n) {
-            println!("#   {count:>7} {name}");
-        }
-    }
-}
 
 /// Kernels listed by `--launches` after each timed step.
 const TOP_KERNELS: usize = 16;
@@ -215,17 +158,17 @@ fn main() {
         .unwrap_or_else(|e| panic!("{e}"));
     for i in 0..=repeats {
         trainer.step = step;
-        let launches = Arc::new(Launches::new(show_launches));
-        let watching = LaunchObservation::new(launches.clone());
         let t = Instant::now();
-        let r = trainer.train_step(&batch).unwrap_or_else(|e| panic!("{e}"));
-        // The step reads its losses and checks back, but the optimizer's last update may
-        // still be queued on a GPU backend: the clock stops when the device is done.
-        device
-            .sync()
-            .unwrap_or_else(|e| panic!("the device failed during a step: {e:?}"));
+        let (r, launches) = count_launches(show_launches, || {
+            let r = trainer.train_step(&batch).unwrap_or_else(|e| panic!("{e}"));
+            // The step reads its losses and checks back, but the optimizer's last update
+            // may still be queued on a GPU backend: the clock stops when the device is done.
+            device
+                .sync()
+                .unwrap_or_else(|e| panic!("the device failed during a step: {e:?}"));
+            r
+        });
         let s = t.elapsed().as_secs_f64();
-        drop(watching);
         if i == 0 {
             println!(
                 "# untimed warm-up step: {s:.2} s, outcome {:?}, loss {:.4}, \
@@ -241,11 +184,9 @@ fn main() {
              kernel_launches={} outcome={:?}",
             peak_rss_gib(),
             device_reserved_gib(&device),
-            launches.total.load(Ordering::Relaxed),
+            launches.total(),
             r.outcome,
         );
-        if show_launches {
-            launches.print_top(TOP_KERNELS);
-        }
+        launches.print_top(TOP_KERNELS);
     }
 }
