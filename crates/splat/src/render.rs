@@ -281,7 +281,9 @@ pub fn render_each(
 /// resolved against what the device reports); `None` on the CPU backend, whose path has
 /// none of these choices.
 pub fn kernel_plan(device: &Device, config: &RasterConfig) -> Option<KernelPlan> {
-    let like = Tensor::<1>::zeros([1], device);
+    // Only the device's client is asked; an uninitialised one-element tensor reaches it
+    // without a launch.
+    let like = Tensor::<1>::empty([1], device);
     <Dispatch as SplatOps>::splat_kernel_plan(like.into_dispatch(), *config)
 }
 

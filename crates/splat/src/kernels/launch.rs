@@ -286,17 +286,18 @@ pub(super) fn view_offset(inp: &Inputs, v: usize) -> u32 {
     u32::try_from(off).expect("splat: image batch too large for 32-bit offsets")
 }
 
-/// Composites view `v` into `image` (the render call's batch), and with `keep_ends` each of
-/// its pixels' final transmittance and last composited item into `view.ends`.
+/// Composites view `v` into `image` (the call's batch; `batched`: the call's plan), and with
+/// `keep_ends` each pixel's final transmittance and last composited item into `view.ends`.
 fn composite(
     inp: &Inputs,
     cfg: &RasterConfig,
+    batched: bool,
     v: usize,
     view: &ViewRender,
     image: &CubeTensor,
     keep_ends: bool,
 ) {
-    let launch = if KernelPlan::of(&inp.means, cfg).shared_batches {
+    let launch = if batched {
         rasterize_forward::launch
     } else {
         rasterize_forward_per_pixel::launch
@@ -342,11 +343,12 @@ pub(super) fn recomputed_views(inp: &Inputs, cfg: &RasterConfig) -> Vec<Option<V
         DType::F32,
     );
     let ends = ends_buffer(inp, true);
+    let batched = KernelPlan::of(&inp.means, cfg).shared_batches;
     let binned = project_and_bin_all(inp, cfg).into_iter().enumerate();
     binned
         .map(|(v, vb)| {
             let view = vb?.into_render(inp, v, &ends)?;
-            composite(inp, cfg, v, &view, &scratch, true);
+            composite(inp, cfg, batched, v, &view, &scratch, true);
             Some(view)
         })
         .collect()
@@ -376,6 +378,7 @@ pub fn forward(
     }
     // Where every pixel stopped, for the backward (which else composites again).
     let ends = ends_buffer(inp, keep);
+    let batched = KernelPlan::of(&inp.means, cfg).shared_batches;
     for (v, vb) in project_and_bin_all(inp, cfg).into_iter().enumerate() {
         let Some(vb) = vb else {
             continue;
@@ -384,7 +387,7 @@ pub fn forward(
         let Some(view) = vb.into_render(inp, v, &ends) else {
             continue;
         };
-        composite(inp, cfg, v, &view, &image, keep);
+        composite(inp, cfg, batched, v, &view, &image, keep);
         if keep {
             kept[v] = Some(view);
         }
