@@ -5,7 +5,7 @@
 //! cargo bench -p envision4d-model --bench forward -- [--preset paper|tiny]
 //!     [--mode forward|train] [--heads all|none|depth|gaussians|motion] [--image HxW]
 //!     [--future N] [--images FILE.safetensors] [--repeats N] [--chunk N] [--profile]
-//!     [--device cpu|wgpu|cuda] [--precision f32|f16|bf16] [--launches]
+//!     [--device cpu|wgpu|cuda] [--precision f32|f16|bf16] [--launches] [--norm fused|burn]
 //! ```
 //!
 //! The peak RSS is the host process's; on a GPU `device_reserved_gib` is the device memory
@@ -188,6 +188,7 @@ fn main() {
         "forward_warm_s"
     };
     let show_launches = args.iter().any(|a| a == "--launches");
+    envision4d_model::bench::choose_layer_norm(&args);
     pass(&model, &images, heads, train); // untimed warm-up
     for _ in 0..repeats {
         let (s, launches) = count_launches(show_launches, || pass(&model, &images, heads, train));

@@ -124,3 +124,13 @@ pub fn count_launches<T>(named: bool, pass: impl FnOnce() -> T) -> (T, Arc<Launc
     drop(watching);
     (out, launches)
 }
+
+/// `--norm fused|burn`: the LayerNorm GPU backends run, the fused op of
+/// [`crate::layers::norm`] (the default) or Burn's decomposition, to compare the two.
+pub fn choose_layer_norm(args: &[String]) {
+    match arg(args, "--norm").as_deref() {
+        None | Some("fused") => crate::layers::norm::set_fused_layer_norm(true),
+        Some("burn") => crate::layers::norm::set_fused_layer_norm(false),
+        Some(other) => panic!("--norm {other}: use fused or burn"),
+    }
+}

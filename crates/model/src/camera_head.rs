@@ -2,6 +2,7 @@
 //! transformer trunk (4 iterations). Prefix `camera_head.`.
 
 use crate::config::{CAMERA_ITERATIONS, CAMERA_TRUNK_DEPTH, MLP_RATIO, POSE_ENC_DIM};
+use crate::layers::norm::layer_norm;
 use crate::layers::{Block, BlockSpec, Mlp, QkNorm, BLOCK_NORM_EPS};
 use crate::pose::{FOV, QUATERNION, TRANSLATION};
 use burn::module::{Module, Param};
@@ -64,7 +65,7 @@ impl CameraHead {
     /// (`[B, N, 9]` each); the last one is the prediction.
     pub fn forward(&self, tokens: Tensor<3>) -> Vec<Tensor<3>> {
         let [b, n, dim] = tokens.dims();
-        let tau = self.token_norm.forward(tokens);
+        let tau = layer_norm(&self.token_norm, tokens);
         let tau_norm = plain_layer_norm(tau.clone(), ADALN_EPS);
         let mut acc: Option<Tensor<3>> = None;
         let mut outs = Vec::with_capacity(CAMERA_ITERATIONS);
@@ -86,7 +87,7 @@ impl CameraHead {
             let (shift, scale, gate) = (chunk(0), chunk(1), chunk(2));
             let m = gate * (tau_norm.clone() * scale.add_scalar(1.0) + shift) + tau.clone();
             let y = self.trunk.iter().fold(m, |x, blk| blk.forward(x, None));
-            let delta = self.pose_branch.forward(self.trunk_norm.forward(y));
+            let delta = self.pose_branch.forward(layer_norm(&self.trunk_norm, y));
             let e = match acc {
                 None => delta,
                 Some(prev) => prev + delta,

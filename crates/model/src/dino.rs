@@ -6,6 +6,7 @@
 //! (LayerNorm eps 1e-6, LayerScale, no qk-norm, no RoPE) → final norm → patch tokens.
 
 use crate::config::{DinoConfig, MLP_RATIO};
+use crate::layers::norm::layer_norm;
 use crate::layers::{Block, BlockSpec, QkNorm, DINO_NORM_EPS};
 use crate::resample::{aa_bicubic_weights, resample_separable};
 use burn::module::{Module, Param};
@@ -135,7 +136,7 @@ impl Dino {
             1,
         );
         let prenorm = self.blocks.iter().fold(x, |x, blk| blk.forward(x, None));
-        let normed = self.norm.forward(prenorm.clone());
+        let normed = layer_norm(&self.norm, prenorm.clone());
         let total = normed.dims()[1];
         DinoOutput {
             cls_token: normed.clone().slice([0..b, 0..1, 0..c]).reshape([b, c]),

@@ -7,7 +7,7 @@
 //! ```text
 //! cargo bench -p envision4d-train --bench train_step -- [--config configs/waymo.toml]
 //!     [--preset paper|tiny] [--image HxW] [--batch B] [--step S] [--repeats N]
-//!     [--device cpu|wgpu|cuda] [--checkpointing] [--launches] [--set KEY=VALUE]...
+//!     [--device cpu|wgpu|cuda] [--checkpointing] [--launches] [--norm fused|burn] [--set KEY=VALUE]...
 //! ```
 //!
 //! `--step` is the schedule step the batch is trained at (default: the first after the
@@ -110,6 +110,7 @@ fn main() {
         .unwrap_or_else(|e| panic!("{e}"));
     let checkpointing = args.iter().any(|a| a == "--checkpointing");
     let show_launches = args.iter().any(|a| a == "--launches");
+    envision4d_model::bench::choose_layer_norm(&args);
     let device = if checkpointing {
         base.autodiff().gradient_checkpointing()
     } else {

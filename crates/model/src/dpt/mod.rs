@@ -11,6 +11,7 @@ pub mod pos_embed;
 
 use crate::config::{DptConfig, MotionModel};
 use crate::layers::cpu_conv::conv2d;
+use crate::layers::norm::layer_norm;
 use crate::resample::bilinear_align_corners;
 use burn::module::Module;
 use burn::nn::conv::{Conv2d, Conv2dConfig, ConvTranspose2d, ConvTranspose2dConfig};
@@ -194,9 +195,7 @@ impl DptHead {
                 .clone()
                 .slice([0..b, 0..s, patch_start..p, 0..dim])
                 .reshape([b * s, rows * cols, dim]);
-            let x = self
-                .norm
-                .forward(x)
+            let x = layer_norm(&self.norm, x)
                 .reshape([b * s, rows, cols, dim])
                 .permute([0, 3, 1, 2]);
             let x = self.projects[k].forward(x);

@@ -2,6 +2,7 @@
 //! LayerNorm of q and k ("qk-norm"), optional 2D RoPE, softmax attention, output projection.
 
 use super::cpu_attention;
+use super::norm::layer_norm;
 use super::rope::RopeTables;
 use burn::module::Module;
 use burn::nn::{LayerNorm, LayerNormConfig, Linear, LinearConfig};
@@ -63,8 +64,8 @@ impl Attention {
         };
         let (mut q, mut k, v) = (part(0), part(1), part(2));
         if let (Some(qn), Some(kn)) = (&self.q_norm, &self.k_norm) {
-            q = qn.forward(q);
-            k = kn.forward(k);
+            q = layer_norm(qn, q);
+            k = layer_norm(kn, k);
         }
         if let Some(r) = rope {
             q = r.apply(q);

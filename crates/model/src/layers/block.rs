@@ -3,6 +3,7 @@
 
 use super::attention::{Attention, QkNorm};
 use super::cpu_gelu::gelu;
+use super::norm::layer_norm;
 use super::rope::RopeTables;
 use burn::module::{Module, Param};
 use burn::nn::{LayerNorm, LayerNormConfig, Linear, LinearConfig};
@@ -100,7 +101,10 @@ impl Block {
         let x = x.clone()
             + self
                 .ls1
-                .forward(self.attn.forward(self.norm1.forward(x), rope));
-        x.clone() + self.ls2.forward(self.mlp.forward(self.norm2.forward(x)))
+                .forward(self.attn.forward(layer_norm(&self.norm1, x), rope));
+        x.clone()
+            + self
+                .ls2
+                .forward(self.mlp.forward(layer_norm(&self.norm2, x)))
     }
 }

@@ -18,7 +18,7 @@ const MAX_GRID_AXIS: u32 = 65_535;
 
 /// A grid of at least `cubes` cubes, two-dimensional past one axis' limit (kernels index
 /// with `CUBE_POS` and skip cubes past the end).
-fn grid(cubes: u32) -> CubeCount {
+pub fn grid(cubes: u32) -> CubeCount {
     if cubes <= MAX_GRID_AXIS {
         CubeCount::Static(cubes, 1, 1)
     } else {

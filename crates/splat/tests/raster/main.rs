@@ -7,7 +7,6 @@ mod device_sort;
 mod edge;
 mod gradients;
 mod oracle;
-mod ptx_list;
 mod stacked;
 mod wgpu_parity;
 mod wgpu_pipeline;

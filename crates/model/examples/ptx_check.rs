@@ -1,10 +1,11 @@
-//! Compiles every CubeCL kernel of the rasterizer to PTX for an NVIDIA architecture, on a
-//! machine without a GPU, through the LLVM route the CUDA runtime takes by default
-//! (`cubecl_llvm::PlironCompiler`, linked into every `cuda` build). A kernel that route
-//! cannot lower fails here, before a GPU lease is spent on it (docs/PERFORMANCE.md,
-//! "Building for CUDA").
+//! Compiles every CubeCL kernel of the project (the rasterizer's, and the model's fused
+//! LayerNorm) to PTX for an NVIDIA architecture, on a machine without a GPU, through the LLVM
+//! route the CUDA runtime takes by default (`cubecl_llvm::PlironCompiler`, linked into every
+//! `cuda` build). A kernel that route cannot lower fails here, before a GPU lease is spent on
+//! it (docs/PERFORMANCE.md, "Building for CUDA"). It lives in the model crate, the one that
+//! sees both crates' kernels.
 //!
-//! cargo run --release -p envision4d-splat --features envision4d-splat/cuda --example ptx_check -- [SM] [DIR] [--cpp]
+//! cargo run --release -p envision4d-model --features envision4d-model/cuda --example ptx_check -- [SM] [DIR] [--cpp]
 //!
 //! SM is the architecture (90 = Hopper, the default; 80 = Ampere); DIR, when given, gets one
 //! `.ptx` file per kernel. With `--cpp` the kernels go through CubeCL's other route instead,
@@ -21,6 +22,7 @@ use cubecl::prelude::*;
 use cubecl::Compiler;
 use cubecl_llvm::nvptx::ptx_version::PtxVersion;
 use cubecl_llvm::{LlvmTarget, PlironArtifact, PlironCompiler, PlironOptions};
+use envision4d_model::layers::norm::kernels as norm;
 use envision4d_splat::kernels::rasterize_forward::TILE;
 use envision4d_splat::kernels::splat_grad::{CasAdd, NativeAdd};
 use envision4d_splat::kernels::{
@@ -86,17 +88,20 @@ fn tp() -> Arc<TargetProperties> {
     Arc::new(TargetProperties::default())
 }
 
-/// Cube shapes: one row of units, or one tile of pixels (the rasterizer's).
+/// Cube shapes: one row of units, one tile of pixels (the rasterizer's), or one row of a
+/// LayerNorm.
 #[derive(Clone, Copy)]
 enum Shape {
     Line,
     Tile,
+    Norm,
 }
 
 fn s(shape: Shape) -> KernelSettings {
     let dim = match shape {
         Shape::Line => CubeDim::new_1d(LINE),
         Shape::Tile => CubeDim::new_1d(TILE * TILE),
+        Shape::Norm => CubeDim::new_1d(norm::NORM_THREADS),
     };
     KernelSettings::new(*dim, ExecutionMode::Checked, AddressType::U32)
 }
@@ -165,6 +170,9 @@ fn main() {
         kernel!("scan_wrapped", scan::scan_wrapped::ScanWrapped, Line, [T T s s]),
         kernel!("view_radii", view_meta::view_radii::ViewRadii, Line, [T T s s s]),
         kernel!("view_counts", view_meta::view_counts::ViewCounts, Line, [T T s s s]),
+        kernel!("layer_norm_forward", norm::layer_norm_forward::LayerNormForward, Norm, [T T T T T T s s s]),
+        kernel!("layer_norm_backward_input", norm::layer_norm_backward_input::LayerNormBackwardInput, Norm, [T T T T T T s s]),
+        kernel!("layer_norm_backward_params", norm::layer_norm_backward_params::LayerNormBackwardParams, Line, [T T T T T T s s s]),
     ];
     let options = PlironOptions {
         sm_arch: Some(SmArch::new(sm, sm >= 70)),

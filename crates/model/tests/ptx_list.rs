@@ -29,7 +29,8 @@ fn launched(source: &str) -> Vec<String> {
 }
 
 /// Guards against a kernel (such as `scan_wrapped`, once) that ships without being
-/// lowered to PTX offline: every launchable kernel appears in ptx_check's list by name.
+/// lowered to PTX offline: every launchable kernel, the rasterizer's and the model's, appears
+/// in ptx_check's list by name.
 #[test]
 fn ptx_check_lists_every_launchable_kernel() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
@@ -40,14 +41,21 @@ fn ptx_check_lists_every_launchable_kernel() {
         .filter_map(|l| l.split(['"', '<']).next())
         .map(str::to_owned)
         .collect();
-    let mut kernels = BTreeSet::new();
-    for entry in std::fs::read_dir(root.join("src/kernels")).unwrap() {
+    let mut sources = vec![root.join("src/layers/norm/kernels.rs")];
+    for entry in std::fs::read_dir(root.join("../splat/src/kernels")).unwrap() {
         let path = entry.unwrap().path();
         if path.extension().is_some_and(|e| e == "rs") {
-            kernels.extend(launched(&std::fs::read_to_string(&path).unwrap()));
+            sources.push(path);
         }
     }
-    assert!(kernels.len() >= 17, "too few kernels found: {kernels:?}");
+    let mut kernels = BTreeSet::new();
+    for path in sources {
+        kernels.extend(launched(&std::fs::read_to_string(&path).unwrap()));
+    }
+    for model_kernel in ["layer_norm_forward", "layer_norm_backward_params"] {
+        assert!(kernels.contains(model_kernel), "{model_kernel} not found");
+    }
+    assert!(kernels.len() >= 20, "too few kernels found: {kernels:?}");
     let missing: Vec<_> = kernels.difference(&listed).collect();
     assert!(missing.is_empty(), "kernels not in ptx_check: {missing:?}");
 }
