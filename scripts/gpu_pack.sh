@@ -88,9 +88,10 @@ fi
 mkdir -p "$stage/cuda/nvvm/libdevice"
 cp "$libdevice" "$stage/cuda/nvvm/libdevice/"
 
-# Every rasterizer kernel through that route for Hopper, here, before a lease is spent on it;
-# then NVIDIA's assembler over each kernel's PTX, for the target it names, as the driver's
-# JIT would take it: an instruction, a PTX version or a target it refuses fails here.
+# Every CubeCL kernel (rasterizer, fused LayerNorm, fused Adam) through that route for
+# Hopper, here, before a lease is spent on it; then NVIDIA's assembler over each kernel's
+# PTX, for the target it names, as the driver's JIT would take it: an instruction, a PTX
+# version or a target it refuses fails here.
 cargo build --release --workspace --features "$features" --example ptx_check
 CUDA_PATH=$stage/cuda "$CARGO_TARGET_DIR/release/examples/ptx_check" 90 "$stage/ptx"
 for ptx in "$stage"/ptx/*.ptx; do

@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
-"""Compiles the rasterizer's kernels through CubeCL's CUDA C++ route with NVIDIA's NVRTC and
-assembles the result with ptxas, on a machine without a GPU: the route a `cuda-nvrtc` build
+"""Compiles the project's CubeCL kernels through CubeCL's CUDA C++ route with NVIDIA's NVRTC
+and assembles the result with ptxas, on a machine without a GPU: the route a `cuda-nvrtc` build
 takes at run time (docs/PERFORMANCE.md, "Building for CUDA").
 
     ptx_check 90 DIR --cpp                       # the kernels' CUDA C++, one .cu each

@@ -7,7 +7,8 @@
 //! ```text
 //! cargo bench -p envision4d-train --bench train_step -- [--config configs/waymo.toml]
 //!     [--preset paper|tiny] [--image HxW] [--batch B] [--step S] [--repeats N]
-//!     [--device cpu|wgpu|cuda] [--checkpointing] [--launches] [--norm fused|burn] [--set KEY=VALUE]...
+//!     [--device cpu|wgpu|cuda] [--checkpointing] [--launches] [--norm fused|burn]
+//!     [--adam fused|burn] [--set KEY=VALUE]...
 //! ```
 //!
 //! `--step` is the schedule step the batch is trained at (default: the first after the
@@ -111,6 +112,13 @@ fn main() {
     let checkpointing = args.iter().any(|a| a == "--checkpointing");
     let show_launches = args.iter().any(|a| a == "--launches");
     envision4d_model::bench::choose_layer_norm(&args);
+    // `--adam fused|burn`: the optimiser's update on GPU backends, as `--norm` chooses the
+    // LayerNorm.
+    match arg(&args, "--adam").as_deref() {
+        None | Some("fused") => envision4d_train::adam::set_fused_adam(true),
+        Some("burn") => envision4d_train::adam::set_fused_adam(false),
+        Some(other) => panic!("--adam {other}: use fused or burn"),
+    }
     let device = if checkpointing {
         base.autodiff().gradient_checkpointing()
     } else {

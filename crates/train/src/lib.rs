@@ -12,6 +12,7 @@
 //!   dataset and splits; [`augment`]: playback augmentation of training windows.
 //! - [`run`]: the run loop (prefetch, log, validation, checkpoints, resume, NaN guard),
 //!   [`log`], [`checkpoint`], [`validate`] (scored with `envision4d-eval`).
+pub mod adam;
 pub mod augment;
 pub mod backbone;
 pub mod batch;
@@ -31,6 +32,7 @@ pub mod parallel;
 pub mod report;
 pub mod run;
 pub mod schedule;
+mod setup;
 pub mod step;
 pub mod validate;
 

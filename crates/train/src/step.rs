@@ -6,7 +6,7 @@
 
 use crate::backbone::backbone_loss;
 use crate::batch::Batch;
-use crate::config::{ClipMode, Init, Stage, Teacher, TrainConfig};
+use crate::config::{ClipMode, Stage, Teacher, TrainConfig};
 use crate::distill::{labels, DistillLoss, FrozenTeacher};
 use crate::error::{Result, TrainError};
 use crate::freeze::{detach_frozen, grads_finite, params_finite, ParamSplit};
@@ -15,73 +15,16 @@ pub use crate::init::{build_model, identity_pose_init, INITIAL_FOV_RAD, POSE_OUT
 pub(crate) use crate::report::LossValues;
 pub use crate::report::{LossTerms, StepOutcome, StepReport};
 use crate::schedule::{Phase, PhasePlan, Schedule};
-use burn::grad_clipping::GradientClippingConfig;
+pub use crate::setup::raster_config;
+pub(crate) use crate::setup::teacher_is_init;
+use crate::setup::{make_optimizer, make_rgb_loss};
 use burn::optim::{AdamConfig, GradientsParams, ModuleOptimizer};
-use burn::tensor::{DType, Device, Tensor};
-use envision4d_losses::{psnr_from_mse, Lpips, LpipsNet, LpipsStatus, LpipsWeights, RgbLoss};
+use burn::tensor::{Device, Tensor};
+use envision4d_losses::{psnr_from_mse, RgbLoss};
 use envision4d_model::aggregator::BlockMemory;
 use envision4d_model::scene::{predict_scene_with, Motion};
 use envision4d_model::Envision4d;
-use envision4d_splat::{BackwardBins, RasterConfig};
-
-fn make_rgb_loss(config: &TrainConfig, device: &Device) -> Result<RgbLoss> {
-    let path = config.loss.lpips_weights.as_deref();
-    if path.is_none() && config.init == Init::Random && config.loss.lambda_lpips > 0.0 {
-        // Random VGG weights: what LPIPS costs, named by `random_weights`.
-        let weights = LpipsWeights::random(LpipsNet::Vgg, config.seed);
-        let lpips = LpipsStatus::Available(Lpips::new(&weights, device, DType::F32));
-        return Ok(
-            RgbLoss::new(config.loss.lambda_lpips, &lpips)?.with_ssim(config.loss.lambda_ssim)?
-        );
-    }
-    let lpips = LpipsStatus::from_path(path, LpipsNet::Vgg, device).map_err(|e| {
-        TrainError::invalid(
-            "loss.lpips_weights",
-            path.map_or("(none)".into(), |p| p.display().to_string()),
-            e.to_string(),
-        )
-    })?;
-    Ok(RgbLoss::new(config.loss.lambda_lpips, &lpips)?.with_ssim(config.loss.lambda_ssim)?)
-}
-
-/// Adam (no weight decay: the paper states none, `docs/MODEL.md`) with the configured ε and,
-/// for the per-tensor modes, Burn's clipping; global-norm clipping is applied by the step.
-fn make_optimizer(config: &TrainConfig) -> ModuleOptimizer {
-    let o = &config.optim;
-    let clip = match o.grad_clip {
-        ClipMode::Norm => Some(GradientClippingConfig::Norm(o.grad_clip_threshold as f32)),
-        ClipMode::Value => Some(GradientClippingConfig::Value(o.grad_clip_threshold as f32)),
-        ClipMode::GlobalNorm | ClipMode::None => None,
-    };
-    AdamConfig::new()
-        .with_epsilon(o.adam_epsilon as f32)
-        .with_grad_clipping(clip)
-        .init()
-}
-
-/// Whether the frozen teacher's weights are the model's initial weights: its checkpoint is
-/// the init checkpoint (the default), or both are random (`init = "random"`).
-pub(crate) fn teacher_is_init(config: &TrainConfig) -> bool {
-    match (&config.teacher_checkpoint, &config.init_checkpoint) {
-        (None, Some(_)) => true,
-        (Some(t), Some(i)) => t == i,
-        (None, None) => config.init == Init::Random,
-        (Some(_), None) => false,
-    }
-}
-
-/// The rasterizer settings of a run: gsplat 1.5.3's, with what the GPU forward keeps for
-/// its backward from `[run] recompute_raster_bins`.
-pub fn raster_config(config: &TrainConfig) -> RasterConfig {
-    RasterConfig {
-        backward_bins: if config.run.recompute_raster_bins {
-            BackwardBins::Recompute
-        } else {
-            BackwardBins::Keep
-        },
-        ..RasterConfig::default()
-    }
-}
+use envision4d_splat::RasterConfig;
 
 /// A model with its optimiser, schedule and frozen set.
 pub struct Trainer {

@@ -16,8 +16,9 @@ use cubecl::prelude::*;
 /// Units per cube (one row each): a head's 64 channels take one value per unit, the
 /// aggregator's 1024 sixteen.
 pub const NORM_THREADS: u32 = 64;
-/// Rows whose parameter gradients one unit of [`layer_norm_backward_params`] sums, one
-/// partial row of `[chunks, cols]` per chunk.
+/// Rows whose parameter gradients one unit of
+/// [`layer_norm_backward_params`](fn@layer_norm_backward_params) sums, one partial row of
+/// `[chunks, cols]` per chunk.
 pub const PARAM_ROWS: u32 = 256;
 /// `NORM_THREADS` as the shared-memory length (a compile-time size).
 const SHARED_LEN: usize = NORM_THREADS as usize;

@@ -16,8 +16,6 @@
 
 mod cube;
 pub mod kernels;
-#[cfg(test)]
-mod tests;
 
 use burn::backend::autodiff::checkpoint::{base::Checkpointer, strategy::CheckpointStrategy};
 use burn::backend::autodiff::grads::Gradients;

@@ -1,11 +1,11 @@
-//! Compiles every CubeCL kernel of the project (the rasterizer's, and the model's fused
-//! LayerNorm) to PTX for an NVIDIA architecture, on a machine without a GPU, through the LLVM
-//! route the CUDA runtime takes by default (`cubecl_llvm::PlironCompiler`, linked into every
-//! `cuda` build). A kernel that route cannot lower fails here, before a GPU lease is spent on
-//! it (docs/PERFORMANCE.md, "Building for CUDA"). It lives in the model crate, the one that
-//! sees both crates' kernels.
+//! Compiles every CubeCL kernel of the project (the rasterizer's, the model's fused
+//! LayerNorm, the fused Adam) to PTX for an NVIDIA architecture, on a machine without a GPU,
+//! through the LLVM route the CUDA runtime takes by default (`cubecl_llvm::PlironCompiler`,
+//! linked into every `cuda` build). A kernel that route cannot lower fails here, before a GPU
+//! lease is spent on it (docs/PERFORMANCE.md, "Building for CUDA"). It lives in the train
+//! crate, the one that sees every crate's kernels.
 //!
-//! cargo run --release -p envision4d-model --features envision4d-model/cuda --example ptx_check -- [SM] [DIR] [--cpp]
+//! cargo run --release -p envision4d-train --features envision4d-train/cuda --example ptx_check -- [SM] [DIR] [--cpp]
 //!
 //! SM is the architecture (90 = Hopper, the default; 80 = Ampere); DIR, when given, gets one
 //! `.ptx` file per kernel. With `--cpp` the kernels go through CubeCL's other route instead,
@@ -29,6 +29,7 @@ use envision4d_splat::kernels::{
     bin_tiles, camera_grad, project_backward, project_forward, radix_sort, rasterize_backward,
     rasterize_backward_per_pixel, rasterize_forward, rasterize_forward_per_pixel, scan, view_meta,
 };
+use envision4d_train::adam::kernel as adam;
 use std::ffi::CStr;
 use std::path::Path;
 use std::sync::Arc;
@@ -173,6 +174,9 @@ fn main() {
         kernel!("layer_norm_forward", norm::layer_norm_forward::LayerNormForward, Norm, [T T T T T T s s s]),
         kernel!("layer_norm_backward_input", norm::layer_norm_backward_input::LayerNormBackwardInput, Norm, [T T T T T T s s]),
         kernel!("layer_norm_backward_params", norm::layer_norm_backward_params::LayerNormBackwardParams, Line, [T T T T T T s s s]),
+        // Both comptime branches: the first step (no moments read) and the later ones.
+        kernel!("adam_update<first>", adam::adam_update::AdamUpdate, Line, [T T T T T T T s s s s s s], true),
+        kernel!("adam_update", adam::adam_update::AdamUpdate, Line, [T T T T T T T s s s s s s], false),
     ];
     let options = PlironOptions {
         sm_arch: Some(SmArch::new(sm, sm >= 70)),

@@ -29,8 +29,8 @@ fn launched(source: &str) -> Vec<String> {
 }
 
 /// Guards against a kernel (such as `scan_wrapped`, once) that ships without being
-/// lowered to PTX offline: every launchable kernel, the rasterizer's and the model's, appears
-/// in ptx_check's list by name.
+/// lowered to PTX offline: every launchable kernel, the rasterizer's, the model's and this
+/// crate's, appears in ptx_check's list by name.
 #[test]
 fn ptx_check_lists_every_launchable_kernel() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
@@ -41,7 +41,10 @@ fn ptx_check_lists_every_launchable_kernel() {
         .filter_map(|l| l.split(['"', '<']).next())
         .map(str::to_owned)
         .collect();
-    let mut sources = vec![root.join("src/layers/norm/kernels.rs")];
+    let mut sources = vec![
+        root.join("../model/src/layers/norm/kernels.rs"),
+        root.join("src/adam/kernel.rs"),
+    ];
     for entry in std::fs::read_dir(root.join("../splat/src/kernels")).unwrap() {
         let path = entry.unwrap().path();
         if path.extension().is_some_and(|e| e == "rs") {
@@ -52,8 +55,12 @@ fn ptx_check_lists_every_launchable_kernel() {
     for path in sources {
         kernels.extend(launched(&std::fs::read_to_string(&path).unwrap()));
     }
-    for model_kernel in ["layer_norm_forward", "layer_norm_backward_params"] {
-        assert!(kernels.contains(model_kernel), "{model_kernel} not found");
+    for outside_splat in [
+        "layer_norm_forward",
+        "layer_norm_backward_params",
+        "adam_update",
+    ] {
+        assert!(kernels.contains(outside_splat), "{outside_splat} not found");
     }
     assert!(kernels.len() >= 20, "too few kernels found: {kernels:?}");
     let missing: Vec<_> = kernels.difference(&listed).collect();

@@ -1,0 +1,72 @@
+//! `AdamOps` for the CubeCL backends: f32 runs [`super::kernel::adam_update`], one unit per
+//! element; other float types take the decomposed body.
+
+use super::kernel::adam_update;
+use super::{decomposed, AdamOps, AdamStep};
+use burn::backend::ops::FloatTensorOps;
+use burn::backend::tensor::FloatTensor;
+use burn::backend::TensorMetadata;
+use burn::tensor::{DType, Shape};
+use burn_cubecl::kernel::into_contiguous;
+use burn_cubecl::ops::numeric::empty_device_dtype;
+use burn_cubecl::tensor::CubeTensor;
+use burn_cubecl::CubeBackend;
+use cubecl::{calculate_cube_count_elemwise, CubeDim};
+
+/// A flat contiguous view of `t`.
+fn flat(t: CubeTensor) -> CubeTensor {
+    let n = t.shape().num_elements();
+    CubeBackend::float_reshape(into_contiguous(t), Shape::new([n]))
+}
+
+impl AdamOps for CubeBackend {
+    fn adam_update(
+        param: FloatTensor<Self>,
+        grad: FloatTensor<Self>,
+        moment_1: FloatTensor<Self>,
+        moment_2: FloatTensor<Self>,
+        step: AdamStep,
+    ) -> (FloatTensor<Self>, FloatTensor<Self>, FloatTensor<Self>) {
+        let shape = param.shape();
+        let n = shape.num_elements();
+        let all_f32 = [&param, &grad, &moment_1, &moment_2]
+            .iter()
+            .all(|t| t.dtype() == DType::F32);
+        if !all_f32 || n == 0 || u32::try_from(n).is_err() {
+            return decomposed::<Self>(param, grad, moment_1, moment_2, step);
+        }
+        let param = flat(param);
+        let empty = || {
+            empty_device_dtype(
+                param.client.clone(),
+                param.device.clone(),
+                Shape::new([n]),
+                DType::F32,
+            )
+        };
+        let (p_out, m_out, v_out) = (empty(), empty(), empty());
+        let client = param.client.clone();
+        let dim = CubeDim::new(&client, n);
+        adam_update::launch(
+            &client,
+            calculate_cube_count_elemwise(&client, n, dim),
+            dim,
+            param.into_tensor_arg(),
+            flat(grad).into_tensor_arg(),
+            flat(moment_1).into_tensor_arg(),
+            flat(moment_2).into_tensor_arg(),
+            p_out.clone().into_tensor_arg(),
+            m_out.clone().into_tensor_arg(),
+            v_out.clone().into_tensor_arg(),
+            n as u32,
+            step.beta_1,
+            step.beta_2,
+            step.factor,
+            step.eps_hat,
+            step.lr,
+            step.first,
+        );
+        let shaped = |t| CubeBackend::float_reshape(t, shape.clone());
+        (shaped(p_out), shaped(m_out), shaped(v_out))
+    }
+}

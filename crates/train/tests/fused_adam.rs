@@ -1,0 +1,186 @@
+//! The fused Adam (`adam::FusedAdam`) against Burn's `Adam`: the same parameters after
+//! several steps on wgpu (lavapipe) and on the CPU, one kernel per tensor, and records that
+//! either optimiser resumes from.
+
+use burn::module::{Module, Param};
+use burn::optim::{AdamConfig, GradientsParams, ModuleOptimizer};
+use burn::tensor::{Device, DeviceKind, Tensor, TensorData};
+use envision4d_model::bench::count_launches;
+use envision4d_train::adam::{set_fused_adam, FusedAdam};
+use std::sync::Mutex;
+
+/// The launch counter and the fused switch are process-wide: these tests take turns.
+static SERIAL: Mutex<()> = Mutex::new(());
+
+const EPS: f32 = 1e-8;
+
+#[derive(Module, Debug)]
+struct Toy {
+    a: Param<Tensor<2>>,
+    b: Param<Tensor<1>>,
+}
+
+/// Gradient values, stiff ones included: zero, 1e-20 (its square is subnormal in f32, which a
+/// GPU may flush), 1e15 (its square near 1e30), mixed signs.
+const GRADS: [f32; 12] = [
+    0.0, 1e-20, -1e-20, 1e15, -3.0, 0.25, 1e-3, -7e4, 1.0, -1.0, 2.5e-8, 42.0,
+];
+
+fn toy(device: &Device) -> Toy {
+    let a: Vec<f32> = (0..8).map(|i| 0.1 * i as f32 - 0.3).collect();
+    Toy {
+        a: Param::from_tensor(Tensor::from_data(TensorData::new(a, [2, 4]), device)),
+        b: Param::from_tensor(Tensor::from_data(
+            TensorData::new(vec![1.0f32, -2.0, 1e6, -1e-6], [4]),
+            device,
+        )),
+    }
+}
+
+/// Gradients equal to `GRADS` scaled by `scale`: those of `Σ a·ga + Σ b·gb`.
+fn grads(model: &Toy, scale: f32, device: &Device) -> GradientsParams {
+    let g: Vec<f32> = GRADS.iter().map(|g| g * scale).collect();
+    let ga = Tensor::<2>::from_data(TensorData::new(g[..8].to_vec(), [2, 4]), device);
+    let gb = Tensor::<1>::from_data(TensorData::new(g[8..].to_vec(), [4]), device);
+    let loss = (model.a.val() * ga).sum() + (model.b.val() * gb).sum();
+    GradientsParams::from_grads(loss.backward(), model)
+}
+
+fn values(model: &Toy) -> Vec<f64> {
+    let mut v: Vec<f64> = model
+        .a
+        .val()
+        .into_data()
+        .convert::<f64>()
+        .try_to_vec()
+        .unwrap();
+    v.extend(
+        model
+            .b
+            .val()
+            .into_data()
+            .convert::<f64>()
+            .try_to_vec::<f64>()
+            .unwrap(),
+    );
+    v
+}
+
+/// Scales and learning rates of the steps: the moments see gradients that change size and
+/// sign, and the bias corrections four step counts.
+const STEPS: [(f32, f64); 4] = [(1.0, 1e-2), (-0.5, 3e-3), (2.0, 1e-3), (0.1, 5e-2)];
+
+/// The parameters after each of `STEPS` from `optim`, starting at step `from`.
+fn run(
+    mut model: Toy,
+    optim: &mut ModuleOptimizer,
+    device: &Device,
+    steps: &[(f32, f64)],
+) -> (Toy, Vec<Vec<f64>>) {
+    let mut after = Vec::new();
+    for &(scale, lr) in steps {
+        let g = grads(&model, scale, device);
+        model = optim.step(lr, model, g);
+        after.push(values(&model));
+    }
+    (model, after)
+}
+
+fn fused() -> ModuleOptimizer {
+    ModuleOptimizer::from(FusedAdam::new(EPS))
+}
+
+fn burns() -> ModuleOptimizer {
+    AdamConfig::new().with_epsilon(EPS).init()
+}
+
+/// `max |a - b| / max(|b|, 1e-6)` elementwise (relative, with a floor for the parameters
+/// that sit near zero).
+fn worst(a: &[f64], b: &[f64]) -> f64 {
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| (x - y).abs() / y.abs().max(1e-6))
+        .fold(0.0, f64::max)
+}
+
+/// Guards the kernel's arithmetic (moments, the first step's start, bias corrections folded
+/// into two scalars, the step's order): four steps on wgpu give Burn's Adam's parameters on
+/// wgpu and on the CPU to f32 rounding, on stiff gradients too.
+#[test]
+fn fused_adam_steps_like_burns_adam() {
+    let _turn = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let gpu = Device::wgpu(DeviceKind::DefaultDevice).autodiff();
+    let cpu = Device::flex().autodiff();
+    assert!(FusedAdam::takes_fused(&gpu, burn::tensor::DType::F32));
+    assert!(!FusedAdam::takes_fused(&cpu, burn::tensor::DType::F32));
+    let (_, ours) = run(toy(&gpu), &mut fused(), &gpu, &STEPS);
+    let (_, burn_gpu) = run(toy(&gpu), &mut burns(), &gpu, &STEPS);
+    let (_, burn_cpu) = run(toy(&cpu), &mut burns(), &cpu, &STEPS);
+    for (k, ((o, g), c)) in ours.iter().zip(&burn_gpu).zip(&burn_cpu).enumerate() {
+        let (eg, ec) = (worst(o, g), worst(o, c));
+        assert!(
+            eg < 1e-6 && ec < 1e-6,
+            "step {k}: {eg:e} vs Burn on wgpu, {ec:e} on the CPU"
+        );
+    }
+    // The parameters moved (a step that did nothing would pass the comparison).
+    assert!(worst(&ours[3], &values(&toy(&cpu))) > 1e-3);
+}
+
+/// Guards the state's format: a record of the fused optimiser resumes it bit for bit, and
+/// Burn's Adam resumes from it (and it from Burn's) to rounding, the checkpoint round trip
+/// of a run continued on another backend or an older binary.
+#[test]
+fn fused_adam_records_resume_either_optimizer() {
+    let _turn = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let gpu = Device::wgpu(DeviceKind::DefaultDevice).autodiff();
+    let (head, tail) = STEPS.split_at(2);
+    let mut straight = fused();
+    let (_, through) = run(toy(&gpu), &mut straight, &gpu, &STEPS);
+
+    let mut first = fused();
+    let (model, _) = run(toy(&gpu), &mut first, &gpu, head);
+    let mut again = fused().load_record(first.to_record());
+    let (_, resumed) = run(model.clone(), &mut again, &gpu, tail);
+    assert_eq!(
+        resumed,
+        through[2..],
+        "the fused optimiser resumed from its record"
+    );
+
+    let mut burn = burns().load_record(first.to_record());
+    let (_, by_burn) = run(model, &mut burn, &gpu, tail);
+    assert!(
+        worst(&by_burn[1], &through[3]) < 1e-6,
+        "Burn's Adam from the fused record"
+    );
+
+    let mut burn_first = burns();
+    let (model, _) = run(toy(&gpu), &mut burn_first, &gpu, head);
+    let mut fused_after = fused().load_record(burn_first.to_record());
+    let (_, by_fused) = run(model, &mut fused_after, &gpu, tail);
+    assert!(
+        worst(&by_fused[1], &through[3]) < 1e-6,
+        "the fused optimiser from Burn's record"
+    );
+}
+
+/// Guards the point of it: an update launches one kernel per tensor on a GPU backend, where
+/// Burn's launches many, and the switch turns it off.
+#[test]
+fn fused_adam_launches_one_kernel_per_tensor() {
+    let _turn = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let gpu = Device::wgpu(DeviceKind::DefaultDevice).autodiff();
+    let launches = |on: bool| {
+        set_fused_adam(on);
+        let mut optim = fused();
+        let (model, _) = run(toy(&gpu), &mut optim, &gpu, &STEPS[..1]);
+        let g = grads(&model, 1.0, &gpu);
+        let (_, counted) = count_launches(false, || optim.step(1e-3, model, g));
+        set_fused_adam(true);
+        counted.total()
+    };
+    let (ours, burn) = (launches(true), launches(false));
+    assert_eq!(ours, 2, "two tensors, two launches");
+    assert!(burn >= 10 * 2, "Burn's Adam: {burn} launches");
+}
