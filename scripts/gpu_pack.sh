@@ -88,7 +88,7 @@ fi
 mkdir -p "$stage/cuda/nvvm/libdevice"
 cp "$libdevice" "$stage/cuda/nvvm/libdevice/"
 
-# Every CubeCL kernel (rasterizer, fused LayerNorm, fused Adam) through that route for
+# Every CubeCL kernel (rasterizer, fused LayerNorm and Adam, finite check) through that route for
 # Hopper, here, before a lease is spent on it; then NVIDIA's assembler over each kernel's
 # PTX, for the target it names, as the driver's JIT would take it: an instruction, a PTX
 # version or a target it refuses fails here.

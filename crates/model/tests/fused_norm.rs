@@ -4,7 +4,7 @@
 
 use burn::module::Param;
 use burn::nn::{LayerNorm, LayerNormConfig};
-use burn::tensor::{DType, Device, DeviceKind, Tensor, TensorData};
+use burn::tensor::{DType, Device, Tensor, TensorData};
 use envision4d_model::bench::count_launches;
 use envision4d_model::layers::norm::{
     epsilon_of, fused_layer_norm, layer_norm, set_fused_layer_norm, takes_fused,
@@ -13,6 +13,29 @@ use std::sync::Mutex;
 
 /// The launch counter and the fused switch are process-wide: these tests take turns.
 static SERIAL: Mutex<()> = Mutex::new(());
+
+/// The test GPU (wgpu, lavapipe in CI; CUDA with `ENVISION4D_TEST_GPU=cuda`), `None` where
+/// `ENVISION4D_SKIP_WGPU=1` and no adapter exists.
+fn gpu() -> Option<Device> {
+    envision4d_splat::testkit::wgpu_test_device()
+}
+
+/// Turns the fused op off until dropped, so a failing assertion cannot leave it off for
+/// the next test.
+struct BurnsNorm;
+
+impl BurnsNorm {
+    fn new() -> Self {
+        set_fused_layer_norm(false);
+        BurnsNorm
+    }
+}
+
+impl Drop for BurnsNorm {
+    fn drop(&mut self) {
+        set_fused_layer_norm(true);
+    }
+}
 
 /// What the rows hold.
 #[derive(Debug, Clone, Copy)]
@@ -176,12 +199,15 @@ fn worst_errors(device: &Device, dtype: DType, fused: bool) -> [f64; 4] {
 #[test]
 fn fused_kernels_equal_burns_layer_norm_on_wgpu() {
     let _turn = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
-    let device = Device::wgpu(DeviceKind::DefaultDevice).autodiff();
+    let Some(device) = gpu().map(Device::autodiff) else {
+        return;
+    };
     assert!(takes_fused(&device, DType::F32));
     let worst = worst_errors(&device, DType::F32, false);
-    set_fused_layer_norm(false);
-    let burns = worst_errors(&device, DType::F32, false);
-    set_fused_layer_norm(true);
+    let burns = {
+        let _burns = BurnsNorm::new();
+        worst_errors(&device, DType::F32, false)
+    };
     eprintln!(
         "worst relative errors (y, dx, dgamma, dbeta): fused {worst:?}, Burn's f32 {burns:?}"
     );
@@ -221,15 +247,16 @@ fn layer_norm_routes_by_device_and_reads_the_epsilon() {
     let x = tensor(&data, [2, 3, 48], &cpu, DType::F32);
     assert_eq!(host(layer_norm(&norm, x.clone())), host(norm.forward(x)));
 
-    let gpu = Device::wgpu(DeviceKind::DefaultDevice);
+    let Some(gpu) = gpu() else {
+        return;
+    };
     let norm: LayerNorm = LayerNormConfig::new(48).init(&gpu);
     let x = tensor(&data, [2, 3, 48], &gpu, DType::F32);
     // The first call initialises the lazy parameters (two fills); count a second.
     let _ = layer_norm(&norm, x.clone());
     let launches = |on: bool| {
-        set_fused_layer_norm(on);
+        let _burns = (!on).then(BurnsNorm::new);
         let (y, counted) = count_launches(false, || layer_norm(&norm, x.clone()));
-        set_fused_layer_norm(true);
         (host(y), counted.total())
     };
     let (fused, fused_launches) = launches(true);
@@ -248,7 +275,9 @@ fn layer_norm_routes_by_device_and_reads_the_epsilon() {
 #[test]
 fn fused_layer_norm_of_large_f16_tokens_is_finite() {
     let _turn = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
-    let gpu = Device::wgpu(DeviceKind::DefaultDevice);
+    let Some(gpu) = gpu() else {
+        return;
+    };
     if !gpu.supports_dtype(DType::F16) {
         eprintln!("skipped: this wgpu adapter has no f16");
         return;
@@ -260,4 +289,56 @@ fn fused_layer_norm_of_large_f16_tokens_is_finite() {
     assert_eq!(got.dtype(), DType::F16);
     let e = rel_err(&host(got), &want);
     assert!(e.is_finite() && e < 1e-2, "f16 LayerNorm off by {e}");
+}
+
+/// Guards the cases the comparison above does not reach: more rows than one grid axis holds
+/// (65,535 cubes; the q/k norms of a paper-size step have more), so the launch grid turns
+/// two-dimensional; a norm without beta; and a frozen norm (gamma and beta without
+/// gradients), whose backward computes the input gradient alone, in one launch.
+#[test]
+fn many_rows_no_beta_and_frozen_parameters() {
+    let _turn = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let Some(gpu) = gpu() else {
+        return;
+    };
+    let cpu = Device::flex();
+    let rows = 70_000;
+    let data = rows_of(Rows::Friendly, rows, 8, 9);
+    let norm_on = |device: &Device, bias: bool| {
+        let mut norm = LayerNormConfig::new(8).with_bias(bias).init(device);
+        let g: Vec<f64> = uniform(8, 4).iter().map(|u| 1.0 + 0.5 * u).collect();
+        norm.gamma = Param::from_tensor(tensor(&g, [8], device, DType::F32));
+        norm
+    };
+    for bias in [true, false] {
+        let want = norm_on(&cpu, bias).forward(tensor(&data, [1, rows, 8], &cpu, DType::F32));
+        let got = layer_norm(
+            &norm_on(&gpu, bias),
+            tensor(&data, [1, rows, 8], &gpu, DType::F32),
+        );
+        let e = rel_err(&host(got), &host(want));
+        assert!(e < 1e-5, "{rows} rows, bias {bias}: relative error {e}");
+    }
+
+    // Frozen: the input gradient equals Burn's, without the parameter kernel's launch.
+    let backward = |device: &Device, trainable: bool| {
+        let mut norm = norm_on(device, true);
+        norm.gamma = norm.gamma.clone().set_require_grad(trainable);
+        norm.beta = norm.beta.clone().map(|b| b.set_require_grad(trainable));
+        let x = tensor(&data[..64 * 8], [1, 64, 8], device, DType::F32).require_grad();
+        let y = layer_norm(&norm, x.clone());
+        let w = tensor(&uniform(64 * 8, 2), [1, 64, 8], device, DType::F32);
+        let loss = (y * w).sum();
+        let (grads, counted) = count_launches(false, || loss.backward());
+        (host(x.grad(&grads).expect("x gradient")), counted.total())
+    };
+    let (want, _) = backward(&cpu.autodiff(), false);
+    let (got, frozen) = backward(&gpu.clone().autodiff(), false);
+    let (_, trainable) = backward(&gpu.autodiff(), true);
+    assert!(rel_err(&got, &want) < 1e-5);
+    assert_eq!(
+        frozen + 1,
+        trainable,
+        "a frozen norm's backward skips the parameter kernel"
+    );
 }

@@ -1,9 +1,10 @@
 //! Compiles every CubeCL kernel of the project (the rasterizer's, the model's fused
-//! LayerNorm, the fused Adam) to PTX for an NVIDIA architecture, on a machine without a GPU,
-//! through the LLVM route the CUDA runtime takes by default (`cubecl_llvm::PlironCompiler`,
-//! linked into every `cuda` build). A kernel that route cannot lower fails here, before a GPU
-//! lease is spent on it (docs/PERFORMANCE.md, "Building for CUDA"). It lives in the train
-//! crate, the one that sees every crate's kernels.
+//! LayerNorm, the fused Adam, the NaN guard's check) to PTX for an NVIDIA architecture, on a
+//! machine without a GPU, through the LLVM route the CUDA runtime takes by default
+//! (`cubecl_llvm::PlironCompiler`, linked into every `cuda` build). A kernel that route
+//! cannot lower fails here, before a GPU lease is spent on it (docs/PERFORMANCE.md,
+//! "Building for CUDA"). It lives in the train crate, the one that sees every crate's
+//! kernels.
 //!
 //! cargo run --release -p envision4d-train --features envision4d-train/cuda --example ptx_check -- [SM] [DIR] [--cpp]
 //!
@@ -30,6 +31,7 @@ use envision4d_splat::kernels::{
     rasterize_backward_per_pixel, rasterize_forward, rasterize_forward_per_pixel, scan, view_meta,
 };
 use envision4d_train::adam::kernel as adam;
+use envision4d_train::finite::kernel as finite;
 use std::ffi::CStr;
 use std::path::Path;
 use std::sync::Arc;
@@ -177,6 +179,7 @@ fn main() {
         // Both comptime branches: the first step (no moments read) and the later ones.
         kernel!("adam_update<first>", adam::adam_update::AdamUpdate, Line, [T T T T T T T s s s s s s], true),
         kernel!("adam_update", adam::adam_update::AdamUpdate, Line, [T T T T T T T s s s s s s], false),
+        kernel!("flag_non_finite", finite::flag_non_finite::FlagNonFinite, Line, [T T s]),
     ];
     let options = PlironOptions {
         sm_arch: Some(SmArch::new(sm, sm >= 70)),

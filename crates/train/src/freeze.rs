@@ -2,6 +2,7 @@
 //! trainable/frozen parameter counts printed by `--dry-run`.
 
 use crate::config::FreezeGroup;
+use crate::finite;
 use burn::module::{Module, ModuleMapper, ModuleVisitor, Param, ParamId};
 use burn::tensor::{Gradients, Tensor};
 use envision4d_model::host_read;
@@ -120,22 +121,18 @@ struct NonFinite<'a> {
     grads: Option<&'a Gradients>,
     /// Parameters not checked (the frozen ones after an update, which it cannot change).
     skip: Option<&'a HashSet<ParamId>>,
-    /// `Σ x·0` over every tensor seen, on the device (one host sync at the end): `x·0` is
-    /// exactly 0 for every finite `x` and NaN for ±inf and NaN, so the total is 0 or NaN,
-    /// and no magnitude can overflow it (a plain sum of large finite values could). Three or
-    /// four kernels per tensor (multiply, sum, perhaps the sum's zero fill, accumulate);
-    /// `is_finite().bool_not().float().sum()` took about nine on a GPU backend, over every
-    /// parameter tensor twice per step.
+    /// The pass's flag on the device (one host sync at the end): 0 while every tensor seen
+    /// is finite ([`crate::finite`]: on GPU backends one kernel per tensor sets it; on the
+    /// CPU it accumulates `Σ x·0`, which is 0 for finite values and NaN otherwise, and which
+    /// no magnitude can overflow). `is_finite().bool_not().float().sum()` took about nine
+    /// kernels per tensor on a GPU backend, over every parameter tensor twice per step.
     bad: Option<Tensor<1>>,
 }
 
 impl NonFinite<'_> {
     fn add<const D: usize>(&mut self, t: Tensor<D>) {
-        let n = t.mul_scalar(0.0).sum();
-        self.bad = Some(match self.bad.take() {
-            None => n,
-            Some(a) => a + n,
-        });
+        let flags = self.bad.take().unwrap_or_else(|| finite::new_flags(&t));
+        self.bad = Some(finite::flag_non_finite(t, flags));
     }
     fn finite(self) -> bool {
         self.bad
@@ -221,8 +218,8 @@ mod tests {
 
     /// Guards the finite checks of a step: NaN, +inf and -inf in any tensor are found, huge
     /// finite values (whose plain sum overflows f32) are not taken for infinities, and the
-    /// post-update check skips exactly the frozen parameters; on the CPU and on wgpu
-    /// (lavapipe in CI), whose autotuned sums must carry a NaN through too.
+    /// post-update check skips exactly the frozen parameters; on the CPU (`Σ x·0`, whose sum
+    /// must carry a NaN through) and on wgpu (lavapipe in CI; the flag kernel).
     #[test]
     fn finite_checks_find_every_non_finite_and_only_those() {
         let gpu = envision4d_splat::testkit::wgpu_test_device();

@@ -21,6 +21,7 @@ pub mod config;
 pub mod dataset;
 pub mod distill;
 pub mod error;
+pub mod finite;
 pub mod freeze;
 pub mod grad_clip;
 pub mod init;

@@ -44,6 +44,7 @@ fn ptx_check_lists_every_launchable_kernel() {
     let mut sources = vec![
         root.join("../model/src/layers/norm/kernels.rs"),
         root.join("src/adam/kernel.rs"),
+        root.join("src/finite/kernel.rs"),
     ];
     for entry in std::fs::read_dir(root.join("../splat/src/kernels")).unwrap() {
         let path = entry.unwrap().path();
@@ -57,8 +58,10 @@ fn ptx_check_lists_every_launchable_kernel() {
     }
     for outside_splat in [
         "layer_norm_forward",
+        "layer_norm_backward_input",
         "layer_norm_backward_params",
         "adam_update",
+        "flag_non_finite",
     ] {
         assert!(kernels.contains(outside_splat), "{outside_splat} not found");
     }

@@ -1,10 +1,11 @@
 //! Adam as one kernel per parameter tensor on GPU backends, with Burn's state and record.
 //!
 //! Why: Burn's `Adam` updates a tensor with about thirteen elementwise kernels (moments,
-//! square, square root, bias corrections, the step), 4,000 launches per step for the 312
-//! trainable tensors of the tiny model on wgpu. [`FusedAdam`] keeps Burn's `AdamState` (the
-//! same moments and step count under the same record keys, so checkpoints load either way
-//! and a resumed run continues exactly) and updates each tensor with one kernel
+//! square, square root, bias corrections, the step), nearly 4,000 launches per step for the
+//! 293 tensors with a gradient of the tiny model on wgpu. [`FusedAdam`] keeps Burn's
+//! `AdamState` (the same moments and step count under the same record keys, so checkpoints
+//! load into either optimiser: a fused run resumes bit for bit, a switch of optimiser or
+//! backend to rounding) and updates each tensor with one kernel
 //! ([`kernel::adam_update`](fn@kernel::adam_update)). The CPU backend keeps Burn's `Adam`
 //! itself, whose updates the CPU tests and the recorded runs were made with.
 

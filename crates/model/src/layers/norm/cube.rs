@@ -5,7 +5,7 @@ use super::kernels::{
     layer_norm_backward_input, layer_norm_backward_params, layer_norm_forward, NORM_THREADS,
     PARAM_ROWS,
 };
-use super::{decomposed_backward, decomposed_forward, FusedNormOps, NormGrads};
+use super::{decomposed_backward, decomposed_forward, FusedNormOps, NormGrads, NormNeeds};
 use burn::backend::ops::FloatTensorOps;
 use burn::backend::tensor::FloatTensor;
 use burn::backend::TensorMetadata;
@@ -15,7 +15,6 @@ use burn_cubecl::ops::numeric::empty_device_dtype;
 use burn_cubecl::tensor::CubeTensor;
 use burn_cubecl::CubeBackend;
 use cubecl::{calculate_cube_count_elemwise, CubeDim};
-use envision4d_splat::kernels::buffers::check_binding;
 use envision4d_splat::kernels::sort::grid;
 
 /// A `[rows, cols]` view of the input, when the kernels can take it.
@@ -57,8 +56,7 @@ fn flat(t: CubeTensor) -> CubeTensor {
 }
 
 /// A new uninitialised f32 buffer of `len` elements on `like`'s device.
-fn empty(like: &CubeTensor, what: &str, len: usize) -> CubeTensor {
-    check_binding(like, what, len);
+fn empty(like: &CubeTensor, len: usize) -> CubeTensor {
     empty_device_dtype(
         like.client.clone(),
         like.device.clone(),
@@ -83,9 +81,9 @@ impl FusedNormOps for CubeBackend {
         *stats_dims.last_mut().expect("not empty") = 1;
         let stats_shape = Shape::from(stats_dims);
         let x = flat(x);
-        let y = empty(&x, "layer norm output", rows * cols);
-        let mean = empty(&x, "layer norm mean", rows);
-        let rstd = empty(&x, "layer norm rstd", rows);
+        let y = empty(&x, rows * cols);
+        let mean = empty(&x, rows);
+        let rstd = empty(&x, rows);
         let client = &x.client;
         layer_norm_forward::launch(
             client,
@@ -114,62 +112,74 @@ impl FusedNormOps for CubeBackend {
         mean: FloatTensor<Self>,
         rstd: FloatTensor<Self>,
         grad: FloatTensor<Self>,
+        needs: NormNeeds,
     ) -> NormGrads<Self> {
         // The forward's test on the same two tensors: the kernels' `mean` is relative to
         // each row's first value, so both passes must take the same path.
         let Some(Rows { rows, cols }) = Rows::of(&x, &gamma) else {
-            return decomposed_backward::<Self>(x, gamma, mean, rstd, grad);
+            return decomposed_backward::<Self>(x, gamma, mean, rstd, grad, needs);
         };
         let grad = as_f32(grad);
         let shape = x.shape();
         let (x, dy, mean, rstd) = (flat(x), flat(grad), flat(mean), flat(rstd));
-        let dx = empty(&x, "layer norm input gradient", rows * cols);
+        let gamma = flat(gamma);
         let client = x.client.clone();
-        layer_norm_backward_input::launch(
-            &client,
-            grid(rows as u32),
-            CubeDim::new_1d(NORM_THREADS),
-            x.clone().into_tensor_arg(),
-            flat(gamma).into_tensor_arg(),
-            dy.clone().into_tensor_arg(),
-            mean.clone().into_tensor_arg(),
-            rstd.clone().into_tensor_arg(),
-            dx.clone().into_tensor_arg(),
-            rows as u32,
-            cols as u32,
-        );
-        let chunks = rows.div_ceil(PARAM_ROWS as usize);
-        let dgamma = empty(&x, "layer norm gamma gradient", chunks * cols);
-        let dbeta = empty(&x, "layer norm beta gradient", chunks * cols);
-        let dim = CubeDim::new(&client, chunks * cols);
-        layer_norm_backward_params::launch(
-            &client,
-            calculate_cube_count_elemwise(&client, chunks * cols, dim),
-            dim,
-            x.into_tensor_arg(),
-            dy.into_tensor_arg(),
-            mean.into_tensor_arg(),
-            rstd.into_tensor_arg(),
-            dgamma.clone().into_tensor_arg(),
-            dbeta.clone().into_tensor_arg(),
-            rows as u32,
-            cols as u32,
-            chunks as u32,
-        );
-        // Up to `PARAM_ROWS` rows the one chunk is the sum; past it, one reduction each.
-        let total = |part: CubeTensor| {
-            let part = CubeBackend::float_reshape(part, Shape::new([chunks, cols]));
-            let sum = if chunks == 1 {
-                part
-            } else {
-                CubeBackend::float_sum_dim(part, 0)
+        // What is not needed is a placeholder of the right shape, never registered.
+        let dx = if needs.input {
+            let dx = empty(&x, rows * cols);
+            layer_norm_backward_input::launch(
+                &client,
+                grid(rows as u32),
+                CubeDim::new_1d(NORM_THREADS),
+                x.clone().into_tensor_arg(),
+                gamma.clone().into_tensor_arg(),
+                dy.clone().into_tensor_arg(),
+                mean.clone().into_tensor_arg(),
+                rstd.clone().into_tensor_arg(),
+                dx.clone().into_tensor_arg(),
+                rows as u32,
+                cols as u32,
+            );
+            dx
+        } else {
+            dy.clone()
+        };
+        let (dgamma, dbeta) = if needs.params {
+            let chunks = rows.div_ceil(PARAM_ROWS as usize);
+            let (dgamma, dbeta) = (empty(&x, chunks * cols), empty(&x, chunks * cols));
+            let dim = CubeDim::new(&client, chunks * cols);
+            layer_norm_backward_params::launch(
+                &client,
+                calculate_cube_count_elemwise(&client, chunks * cols, dim),
+                dim,
+                x.into_tensor_arg(),
+                dy.into_tensor_arg(),
+                mean.into_tensor_arg(),
+                rstd.into_tensor_arg(),
+                dgamma.clone().into_tensor_arg(),
+                dbeta.clone().into_tensor_arg(),
+                rows as u32,
+                cols as u32,
+                chunks as u32,
+            );
+            // Up to `PARAM_ROWS` rows the one chunk is the sum; past it, one reduction each.
+            let total = |part: CubeTensor| {
+                let part = CubeBackend::float_reshape(part, Shape::new([chunks, cols]));
+                let sum = if chunks == 1 {
+                    part
+                } else {
+                    CubeBackend::float_sum_dim(part, 0)
+                };
+                CubeBackend::float_reshape(sum, Shape::new([cols]))
             };
-            CubeBackend::float_reshape(sum, Shape::new([cols]))
+            (total(dgamma), total(dbeta))
+        } else {
+            (gamma.clone(), gamma)
         };
         NormGrads {
             x: CubeBackend::float_reshape(dx, shape),
-            gamma: total(dgamma),
-            beta: total(dbeta),
+            gamma: dgamma,
+            beta: dbeta,
         }
     }
 }

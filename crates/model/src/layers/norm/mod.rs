@@ -1,13 +1,13 @@
 //! LayerNorm as one backend op with its own autodiff node, fused into CubeCL kernels on GPU
 //! backends.
 //!
-//! Why: Burn 0.22 decomposes `LayerNorm` on CubeCL into about ten kernels (two means, the
+//! Why: Burn 0.22 decomposes `LayerNorm` on CubeCL into nine kernels (two means, the
 //! centring, the square root, the division, the affine), and autodiff differentiates each;
-//! a tiny training step on wgpu launched thousands of kernels for its ~200 norms
-//! (docs/PERFORMANCE.md, "Kernel launches of a step on a GPU backend"). Here the forward is
-//! one kernel and the backward three (the input gradient, the parameter gradients in row
-//! chunks, and summing the chunks), and the node keeps the input and two numbers per row
-//! rather than every intermediate.
+//! the tiny model's forward runs 306 of them (docs/PERFORMANCE.md, "Kernel launches of a
+//! step on a GPU backend"). Here the forward is one kernel and the backward two (the input
+//! gradient per row, the parameter gradients in chunks of rows), plus one sum each for
+//! gamma and beta past one chunk; a frozen block's norm computes its input gradient only.
+//! The node keeps the input and two numbers per row rather than every intermediate.
 //!
 //! The CPU backend keeps Burn's op ([`layer_norm`] routes it there): burn-flex has its own
 //! row-wise kernel and its results are what parity with the official code is checked in.
@@ -51,6 +51,22 @@ pub struct NormGrads<B: Backend> {
     pub beta: FloatTensor<B>,
 }
 
+/// Which gradients a backward computes: a frozen block's norms need the input's only, and a
+/// norm whose input is a constant its parameters' only.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct NormNeeds {
+    pub input: bool,
+    /// gamma and beta.
+    pub params: bool,
+}
+
+impl NormNeeds {
+    pub const ALL: NormNeeds = NormNeeds {
+        input: true,
+        params: true,
+    };
+}
+
 /// LayerNorm over the last axis. Shapes: x `[..., C]`, gamma and beta `[C]`; the row
 /// statistics `mean` and `rstd = 1 / sqrt(var + eps)` (biased variance) are `[..., 1]`.
 /// `mean` is in the form the same backend's backward reads: the decomposed bodies keep the
@@ -67,15 +83,18 @@ pub trait FusedNormOps: Backend {
         decomposed_forward::<Self>(x, gamma, beta, epsilon)
     }
 
-    /// Vector-Jacobian product of `y` w.r.t. x, gamma and beta, from the forward's stats.
+    /// Vector-Jacobian product of `y` w.r.t. x, gamma and beta, from the forward's stats;
+    /// only the gradients `needs` asks for are computed (the others are placeholders of the
+    /// right shape, which the caller drops).
     fn fused_layer_norm_backward(
         x: FloatTensor<Self>,
         gamma: FloatTensor<Self>,
         mean: FloatTensor<Self>,
         rstd: FloatTensor<Self>,
         grad: FloatTensor<Self>,
+        needs: NormNeeds,
     ) -> NormGrads<Self> {
-        decomposed_backward::<Self>(x, gamma, mean, rstd, grad)
+        decomposed_backward::<Self>(x, gamma, mean, rstd, grad, needs)
     }
 }
 
@@ -130,6 +149,7 @@ fn decomposed_backward<B: Backend>(
     mean: FloatTensor<B>,
     rstd: FloatTensor<B>,
     grad: FloatTensor<B>,
+    needs: NormNeeds,
 ) -> NormGrads<B> {
     let shape = x.shape();
     let rank = shape.num_dims();
@@ -137,21 +157,33 @@ fn decomposed_backward<B: Backend>(
     let cols = shape[last];
     let rows = shape.num_elements() / cols.max(1);
     let xhat = normalised::<B>(x, mean, rstd.clone());
-    let g = B::float_mul(grad.clone(), along_last::<B>(gamma, rank));
-    let mean_g = B::float_mean_dim(g.clone(), last);
-    let mean_gx = B::float_mean_dim(B::float_mul(g.clone(), xhat.clone()), last);
-    let dx = B::float_mul(
-        rstd,
-        B::float_sub(B::float_sub(g, mean_g), B::float_mul(xhat.clone(), mean_gx)),
-    );
+    let dx = if needs.input {
+        let g = B::float_mul(grad.clone(), along_last::<B>(gamma.clone(), rank));
+        let mean_g = B::float_mean_dim(g.clone(), last);
+        let mean_gx = B::float_mean_dim(B::float_mul(g.clone(), xhat.clone()), last);
+        B::float_mul(
+            rstd,
+            B::float_sub(B::float_sub(g, mean_g), B::float_mul(xhat.clone(), mean_gx)),
+        )
+    } else {
+        grad.clone()
+    };
     let column_sum = |t: FloatTensor<B>| {
         let flat = B::float_reshape(t, Shape::new([rows, cols]));
         B::float_reshape(B::float_sum_dim(flat, 0), Shape::new([cols]))
     };
+    let (dgamma, dbeta) = if needs.params {
+        (
+            column_sum(B::float_mul(grad.clone(), xhat)),
+            column_sum(grad),
+        )
+    } else {
+        (gamma.clone(), gamma)
+    };
     NormGrads {
         x: dx,
-        gamma: column_sum(B::float_mul(grad.clone(), xhat)),
-        beta: column_sum(grad),
+        gamma: dgamma,
+        beta: dbeta,
     }
 }
 
@@ -165,7 +197,12 @@ impl<B: FusedNormOps> Backward<B, 3> for NormBackward {
     fn backward(self, ops: Ops<Self::State, 3>, grads: &mut Gradients, _: &mut Checkpointer) {
         let grad = grads.consume::<B>(&ops.node);
         let [x, gamma, mean, rstd] = ops.state;
-        let g = B::fused_layer_norm_backward(x, gamma, mean, rstd, grad);
+        let [input, gamma_node, beta_node] = ops.parents.each_ref().map(Option::is_some);
+        let needs = NormNeeds {
+            input,
+            params: gamma_node || beta_node,
+        };
+        let g = B::fused_layer_norm_backward(x, gamma, mean, rstd, grad, needs);
         for (parent, grad) in ops.parents.into_iter().zip([g.x, g.gamma, g.beta]) {
             if let Some(node) = parent {
                 grads.register::<B>(node.id, grad);
@@ -200,6 +237,7 @@ impl<B: FusedNormOps, C: CheckpointStrategy> FusedNormOps for Autodiff<B, C> {
         mean: FloatTensor<Self>,
         rstd: FloatTensor<Self>,
         grad: FloatTensor<Self>,
+        needs: NormNeeds,
     ) -> NormGrads<Self> {
         let g = B::fused_layer_norm_backward(
             x.into_primitive(),
@@ -207,6 +245,7 @@ impl<B: FusedNormOps, C: CheckpointStrategy> FusedNormOps for Autodiff<B, C> {
             mean.into_primitive(),
             rstd.into_primitive(),
             grad.into_primitive(),
+            needs,
         );
         let lift = <Self as burn::backend::AutodiffBackend>::from_inner;
         NormGrads {
@@ -244,11 +283,19 @@ pub fn takes_fused(device: &Device, dtype: DType) -> bool {
 /// f16 inputs are normalised in f32 and narrowed back, as Burn's `LayerNorm` does.
 pub fn layer_norm<const D: usize>(norm: &LayerNorm, x: Tensor<D>) -> Tensor<D> {
     let dtype = x.dtype();
-    let epsilon = match epsilon_of(norm) {
-        Some(eps) if takes_fused(&x.device(), dtype) => eps,
-        _ => return norm.forward(x),
+    if !takes_fused(&x.device(), dtype) {
+        return norm.forward(x);
+    }
+    let Some(epsilon) = epsilon_of(norm) else {
+        return norm.forward(x);
     };
     let gamma = norm.gamma.val();
+    // Burn's forward checks this; the kernels would read past gamma instead.
+    let (cols, width) = (x.dims()[D - 1], gamma.dims()[0]);
+    assert_eq!(
+        cols, width,
+        "LayerNorm of width {width} applied to rows of {cols}"
+    );
     let beta = match &norm.beta {
         Some(b) => b.val(),
         None => gamma.zeros_like(),

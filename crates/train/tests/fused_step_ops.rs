@@ -1,16 +1,41 @@
 //! The fused Adam (`adam::FusedAdam`) against Burn's `Adam`: the same parameters after
 //! several steps on wgpu (lavapipe) and on the CPU, one kernel per tensor, and records that
-//! either optimiser resumes from.
+//! either optimiser resumes from; and the NaN guard's check, one kernel per tensor too.
 
 use burn::module::{Module, Param};
 use burn::optim::{AdamConfig, GradientsParams, ModuleOptimizer};
-use burn::tensor::{Device, DeviceKind, Tensor, TensorData};
+use burn::tensor::{Device, Tensor, TensorData};
 use envision4d_model::bench::count_launches;
 use envision4d_train::adam::{set_fused_adam, FusedAdam};
+use envision4d_train::freeze::params_finite;
+use std::collections::HashSet;
 use std::sync::Mutex;
 
 /// The launch counter and the fused switch are process-wide: these tests take turns.
 static SERIAL: Mutex<()> = Mutex::new(());
+
+/// The test GPU (wgpu, lavapipe in CI; CUDA with `ENVISION4D_TEST_GPU=cuda`) with autodiff,
+/// `None` where `ENVISION4D_SKIP_WGPU=1` and no adapter exists.
+fn gpu() -> Option<Device> {
+    envision4d_splat::testkit::wgpu_test_device().map(Device::autodiff)
+}
+
+/// Burn's Adam until dropped, so a failing assertion cannot leave the kernel off for the
+/// next test.
+struct BurnsAdam;
+
+impl BurnsAdam {
+    fn new() -> Self {
+        set_fused_adam(false);
+        BurnsAdam
+    }
+}
+
+impl Drop for BurnsAdam {
+    fn drop(&mut self) {
+        set_fused_adam(true);
+    }
+}
 
 const EPS: f32 = 1e-8;
 
@@ -109,7 +134,9 @@ fn worst(a: &[f64], b: &[f64]) -> f64 {
 #[test]
 fn fused_adam_steps_like_burns_adam() {
     let _turn = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
-    let gpu = Device::wgpu(DeviceKind::DefaultDevice).autodiff();
+    let Some(gpu) = gpu() else {
+        return;
+    };
     let cpu = Device::flex().autodiff();
     assert!(FusedAdam::takes_fused(&gpu, burn::tensor::DType::F32));
     assert!(!FusedAdam::takes_fused(&cpu, burn::tensor::DType::F32));
@@ -133,7 +160,9 @@ fn fused_adam_steps_like_burns_adam() {
 #[test]
 fn fused_adam_records_resume_either_optimizer() {
     let _turn = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
-    let gpu = Device::wgpu(DeviceKind::DefaultDevice).autodiff();
+    let Some(gpu) = gpu() else {
+        return;
+    };
     let (head, tail) = STEPS.split_at(2);
     let mut straight = fused();
     let (_, through) = run(toy(&gpu), &mut straight, &gpu, &STEPS);
@@ -170,17 +199,35 @@ fn fused_adam_records_resume_either_optimizer() {
 #[test]
 fn fused_adam_launches_one_kernel_per_tensor() {
     let _turn = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
-    let gpu = Device::wgpu(DeviceKind::DefaultDevice).autodiff();
+    let Some(gpu) = gpu() else {
+        return;
+    };
     let launches = |on: bool| {
-        set_fused_adam(on);
+        let _burns = (!on).then(BurnsAdam::new);
         let mut optim = fused();
         let (model, _) = run(toy(&gpu), &mut optim, &gpu, &STEPS[..1]);
         let g = grads(&model, 1.0, &gpu);
         let (_, counted) = count_launches(false, || optim.step(1e-3, model, g));
-        set_fused_adam(true);
         counted.total()
     };
     let (ours, burn) = (launches(true), launches(false));
     assert_eq!(ours, 2, "two tensors, two launches");
     assert!(burn >= 10 * 2, "Burn's Adam: {burn} launches");
+}
+
+/// Guards the NaN guard's GPU check: a pass over two tensors launches its flag's fill and one
+/// kernel per tensor (the sum of `x·0` took three or four each), and still finds a NaN.
+#[test]
+fn the_finite_check_launches_one_kernel_per_tensor() {
+    let _turn = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let Some(gpu) = gpu() else {
+        return;
+    };
+    let model = toy(&gpu);
+    let (finite, counted) = count_launches(false, || params_finite(&model, &HashSet::new()));
+    assert!(finite);
+    assert_eq!(counted.total(), 3, "one fill, two checks");
+    let mut bad = toy(&gpu);
+    bad.b = Param::from_tensor((bad.b.val() * f32::NAN).detach());
+    assert!(!params_finite(&bad, &HashSet::new()));
 }
