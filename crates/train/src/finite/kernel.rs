@@ -8,6 +8,9 @@ use envision4d_splat::kernels::math::finite;
 /// was otherwise. Every writer writes the same value, so concurrent writes agree. The test is
 /// on the bit pattern, which no fast-math assumption of a shader compiler can fold away.
 #[cube(launch)]
+// Nested, not `&&`: the bound must be tested before `x[i]` is read, whatever the kernel
+// language does with a combined condition.
+#[allow(clippy::collapsible_if)]
 pub fn flag_non_finite(x: &Tensor<f32>, flags: &mut Tensor<f32>, len: u32) {
     let i = ABSOLUTE_POS;
     if i < len as usize {
