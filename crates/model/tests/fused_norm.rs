@@ -342,3 +342,56 @@ fn many_rows_no_beta_and_frozen_parameters() {
         "a frozen norm's backward skips the parameter kernel"
     );
 }
+
+/// Guards the kernels' flat indexing on inputs that are views, not fresh buffers (the q/k
+/// norms take slices of the qkv projection; a transposed tensor is strided): values and the
+/// input gradient of a transposed input and of a column slice equal the CPU's, and so do
+/// the input gradients of 70,000 rows, whose backward launches on a two-dimensional grid.
+#[test]
+fn strided_inputs_and_a_two_dimensional_backward_grid() {
+    let _turn = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let Some(gpu) = gpu() else {
+        return;
+    };
+    let cpu = Device::flex();
+    let cols = 24;
+    let g: Vec<f64> = uniform(cols, 5).iter().map(|u| 1.0 + 0.5 * u).collect();
+    let b = uniform(cols, 6);
+    // `view` makes `[rows, cols]` out of a stored tensor of `stored` shape.
+    let check = |rows: usize, stored: [usize; 2], view: &dyn Fn(Tensor<2>) -> Tensor<2>| {
+        let data = rows_of(Rows::Friendly, stored[0], stored[1], 3);
+        let w = uniform(rows * cols, 8);
+        let on = |device: &Device| {
+            let x = tensor(&data, stored, device, DType::F32).require_grad();
+            let y = fused_layer_norm(
+                view(x.clone()),
+                tensor(&g, [cols], device, DType::F32),
+                tensor(&b, [cols], device, DType::F32),
+                1e-6,
+            );
+            let grads = (y.clone() * tensor(&w, [rows, cols], device, DType::F32))
+                .sum()
+                .backward();
+            [host(y), host(x.grad(&grads).expect("x gradient"))]
+        };
+        let (want, got) = (on(&cpu.clone().autodiff()), on(&gpu.clone().autodiff()));
+        for (name, (got, want)) in ["y", "dx"].iter().zip(got.iter().zip(&want)) {
+            let e = rel_err(got, want);
+            assert!(e < 1e-4, "{stored:?} as {rows} rows: {name} off by {e}");
+        }
+    };
+    check(40, [cols, 40], &|x| x.swap_dims(0, 1));
+    check(40, [40, 3 * cols], &|x| x.narrow(1, cols, cols));
+    check(70_000, [70_000, cols], &|x| x);
+}
+
+/// Guards the public op's width check: a gamma narrower than the rows is refused with the
+/// widths named, as Burn's LayerNorm refuses it, rather than read past its end on a GPU.
+#[test]
+#[should_panic(expected = "LayerNorm gamma of width 4 applied to rows of 8")]
+fn a_gamma_of_the_wrong_width_is_refused() {
+    let cpu = Device::flex();
+    let x = tensor(&uniform(16, 1), [2, 8], &cpu, DType::F32);
+    let ones = |n: usize| tensor(&vec![1.0; n], [n], &cpu, DType::F32);
+    let _ = fused_layer_norm(x, ones(4), ones(8), 1e-5);
+}

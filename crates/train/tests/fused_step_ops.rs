@@ -56,12 +56,15 @@ fn toy(device: &Device) -> Toy {
     Toy {
         a: Param::from_tensor(Tensor::from_data(TensorData::new(a, [2, 4]), device)),
         b: Param::from_tensor(Tensor::from_data(
-            TensorData::new(vec![1.0f32, -2.0, 1e6, -1e-6], [4]),
+            TensorData::new(vec![1.0f32, -2.0, 1e3, -1e-6], [4]),
             device,
         )),
     }
 }
 
+/// A parameter near 1e3 still moves by a visible step in f32 (its ulp is 6e-5), and one near
+/// -1e-6 is far below the steps, so the sign of the update shows.
+///
 /// Gradients equal to `GRADS` scaled by `scale`: those of `Σ a·ga + Σ b·gb`.
 fn grads(model: &Toy, scale: f32, device: &Device) -> GradientsParams {
     let g: Vec<f32> = GRADS.iter().map(|g| g * scale).collect();
@@ -230,4 +233,45 @@ fn the_finite_check_launches_one_kernel_per_tensor() {
     let mut bad = toy(&gpu);
     bad.b = Param::from_tensor((bad.b.val() * f32::NAN).detach());
     assert!(!params_finite(&bad, &HashSet::new()));
+}
+
+/// Guards the kernel's reads of strided gradients (a weight used transposed gets its gradient
+/// as a transposed view): one step on wgpu from such a gradient equals Burn's Adam's.
+#[test]
+fn fused_adam_takes_strided_gradients() {
+    let _turn = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let Some(gpu) = gpu() else {
+        return;
+    };
+    let step = |mut optim: ModuleOptimizer| {
+        let model = toy(&gpu);
+        let ga = Tensor::<2>::from_data(TensorData::new(GRADS[..8].to_vec(), [4, 2]), &gpu);
+        let loss = (model.a.val().swap_dims(0, 1) * ga).sum() + model.b.val().sum();
+        let g = GradientsParams::from_grads(loss.backward(), &model);
+        values(&optim.step(1e-2, model, g))
+    };
+    let (ours, burn) = (step(fused()), step(burns()));
+    let e = worst(&ours, &burn);
+    assert!(e < 1e-6, "{e:e} from Burn's Adam");
+    assert!(worst(&ours, &values(&toy(&gpu))) > 1e-3, "the step moved");
+}
+
+/// Guards the finite check's reads of views: a column slice of a buffer whose other columns
+/// are NaN is finite (a check of the raw buffer would see them), and a NaN inside it is not.
+#[test]
+fn the_finite_check_reads_views_not_buffers() {
+    let _turn = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let Some(gpu) = gpu() else {
+        return;
+    };
+    let with_nan_at = |at: usize| {
+        let mut v = vec![0.5f32; 16];
+        v[at] = f32::NAN;
+        let stored = Tensor::<2>::from_data(TensorData::new(v, [2, 8]), &gpu);
+        let mut model = toy(&gpu);
+        model.a = Param::from_tensor(stored.narrow(1, 0, 4).detach());
+        params_finite(&model, &HashSet::new())
+    };
+    assert!(with_nan_at(5), "a NaN outside the slice is not the slice's");
+    assert!(!with_nan_at(9), "a NaN inside the slice is found");
 }

@@ -10,7 +10,7 @@ use burn_cubecl::tensor::CubeTensor;
 use burn_cubecl::CubeBackend;
 
 /// A flat (1-D, contiguous) view of `t`, so kernels may index it with `row * lanes + k`.
-pub(crate) fn flat(t: CubeTensor) -> CubeTensor {
+pub fn flat(t: CubeTensor) -> CubeTensor {
     let n = t.shape().num_elements();
     CubeBackend::float_reshape(into_contiguous(t), Shape::new([n]))
 }

@@ -7,17 +7,10 @@ use burn::backend::ops::FloatTensorOps;
 use burn::backend::tensor::FloatTensor;
 use burn::backend::TensorMetadata;
 use burn::tensor::{DType, Shape};
-use burn_cubecl::kernel::into_contiguous;
 use burn_cubecl::ops::numeric::empty_device_dtype;
-use burn_cubecl::tensor::CubeTensor;
 use burn_cubecl::CubeBackend;
 use cubecl::{calculate_cube_count_elemwise, CubeDim};
-
-/// A flat contiguous view of `t`.
-fn flat(t: CubeTensor) -> CubeTensor {
-    let n = t.shape().num_elements();
-    CubeBackend::float_reshape(into_contiguous(t), Shape::new([n]))
-}
+use envision4d_splat::kernels::buffers::flat;
 
 impl AdamOps for CubeBackend {
     fn adam_update(

@@ -6,10 +6,11 @@ use super::{decomposed, FiniteOps};
 use burn::backend::ops::FloatTensorOps;
 use burn::backend::tensor::FloatTensor;
 use burn::backend::TensorMetadata;
-use burn::tensor::{DType, Shape};
+use burn::tensor::DType;
 use burn_cubecl::kernel::into_contiguous;
 use burn_cubecl::CubeBackend;
 use cubecl::{calculate_cube_count_elemwise, CubeDim};
+use envision4d_splat::kernels::buffers::flat;
 
 impl FiniteOps for CubeBackend {
     fn flag_non_finite(x: FloatTensor<Self>, flags: FloatTensor<Self>) -> FloatTensor<Self> {
@@ -21,7 +22,7 @@ impl FiniteOps for CubeBackend {
         if n == 0 {
             return flags;
         }
-        let x = CubeBackend::float_reshape(into_contiguous(x), Shape::new([n]));
+        let x = flat(x);
         // Written in place when the pass owns the flag (moved in, handed back); a flag someone
         // else still holds is copied first, so no other handle sees it change.
         let flags = if flags.can_mut() {

@@ -10,11 +10,11 @@ use burn::backend::ops::FloatTensorOps;
 use burn::backend::tensor::FloatTensor;
 use burn::backend::TensorMetadata;
 use burn::tensor::{DType, Shape};
-use burn_cubecl::kernel::into_contiguous;
 use burn_cubecl::ops::numeric::empty_device_dtype;
 use burn_cubecl::tensor::CubeTensor;
 use burn_cubecl::CubeBackend;
 use cubecl::{calculate_cube_count_elemwise, CubeDim};
+use envision4d_splat::kernels::buffers::flat;
 use envision4d_splat::kernels::sort::grid;
 
 /// A `[rows, cols]` view of the input, when the kernels can take it.
@@ -25,15 +25,18 @@ struct Rows {
 }
 
 impl Rows {
-    /// `None` unless the input and gamma are f32, the input is not empty and its flat
-    /// indices fit the kernels' u32 arithmetic. Forward and backward decide on these two
-    /// alone, so a node's two passes always take the same path.
+    /// `None` unless the input and gamma are f32, gamma is as wide as the rows, the input is
+    /// not empty and its flat indices fit the kernels' u32 arithmetic. Forward and backward
+    /// decide on these two alone, so a node's two passes always take the same path.
     fn of(x: &CubeTensor, gamma: &CubeTensor) -> Option<Rows> {
         let shape = x.shape();
         let cols = *shape.to_vec().last()?;
         let n = shape.num_elements();
         let f32s = x.dtype() == DType::F32 && gamma.dtype() == DType::F32;
-        (f32s && n > 0 && u32::try_from(n).is_ok()).then_some(Rows {
+        // A gamma of another width is an error the decomposed body reports as a broadcast
+        // failure; the kernels would read past it instead.
+        let fits = gamma.shape().num_elements() == cols;
+        (f32s && fits && n > 0 && u32::try_from(n).is_ok()).then_some(Rows {
             rows: n / cols,
             cols,
         })
@@ -47,12 +50,6 @@ fn as_f32(t: CubeTensor) -> CubeTensor {
     } else {
         CubeBackend::float_cast(t, burn::tensor::FloatDType::F32)
     }
-}
-
-/// A flat contiguous view of `t`.
-fn flat(t: CubeTensor) -> CubeTensor {
-    let n = t.shape().num_elements();
-    CubeBackend::float_reshape(into_contiguous(t), Shape::new([n]))
 }
 
 /// A new uninitialised f32 buffer of `len` elements on `like`'s device.

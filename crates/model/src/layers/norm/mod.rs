@@ -125,7 +125,7 @@ fn decomposed_forward<B: Backend>(
     epsilon: f64,
 ) -> (FloatTensor<B>, FloatTensor<B>, FloatTensor<B>) {
     let rank = x.shape().num_dims();
-    let last = rank - 1;
+    let last = rank.checked_sub(1).expect("LayerNorm of a rank-0 tensor");
     let mean = B::float_mean_dim(x.clone(), last);
     let centred = B::float_sub(x, mean.clone());
     let var = B::float_mean_dim(B::float_mul(centred.clone(), centred.clone()), last);
@@ -153,7 +153,7 @@ fn decomposed_backward<B: Backend>(
 ) -> NormGrads<B> {
     let shape = x.shape();
     let rank = shape.num_dims();
-    let last = rank - 1;
+    let last = rank.checked_sub(1).expect("LayerNorm of a rank-0 tensor");
     let cols = shape[last];
     let rows = shape.num_elements() / cols.max(1);
     let xhat = normalised::<B>(x, mean, rstd.clone());
@@ -257,12 +257,27 @@ impl<B: FusedNormOps, C: CheckpointStrategy> FusedNormOps for Autodiff<B, C> {
 }
 
 /// The fused op on `(x, gamma, beta)`, through the dispatch backend: returns `y`.
+///
+/// # Panics
+/// On a rank-0 `x`, or gamma or beta whose length is not the width of `x`'s rows, as
+/// Burn's `LayerNorm` does (the kernels would read past gamma instead).
 pub fn fused_layer_norm<const D: usize>(
     x: Tensor<D>,
     gamma: Tensor<1>,
     beta: Tensor<1>,
     epsilon: f64,
 ) -> Tensor<D> {
+    let last = D
+        .checked_sub(1)
+        .expect("LayerNorm needs an input of rank 1 or more");
+    let cols = x.dims()[last];
+    for (name, t) in [("gamma", &gamma), ("beta", &beta)] {
+        let width = t.dims()[0];
+        assert_eq!(
+            cols, width,
+            "LayerNorm {name} of width {width} applied to rows of {cols}"
+        );
+    }
     let (y, _mean, _rstd) = <Dispatch as FusedNormOps>::fused_layer_norm_forward(
         x.into_dispatch(),
         gamma.into_dispatch(),
@@ -289,13 +304,8 @@ pub fn layer_norm<const D: usize>(norm: &LayerNorm, x: Tensor<D>) -> Tensor<D> {
     let Some(epsilon) = epsilon_of(norm) else {
         return norm.forward(x);
     };
+    // `fused_layer_norm` checks the widths, as Burn's forward does.
     let gamma = norm.gamma.val();
-    // Burn's forward checks this; the kernels would read past gamma instead.
-    let (cols, width) = (x.dims()[D - 1], gamma.dims()[0]);
-    assert_eq!(
-        cols, width,
-        "LayerNorm of width {width} applied to rows of {cols}"
-    );
     let beta = match &norm.beta {
         Some(b) => b.val(),
         None => gamma.zeros_like(),
