@@ -134,3 +134,14 @@ pub fn choose_layer_norm(args: &[String]) {
         Some(other) => panic!("--norm {other}: use fused or burn"),
     }
 }
+
+/// `--softmax fused|burn`: the lean attention's score rows on the GPU backends, the
+/// fused row kernels of [`crate::layers::lean_attention`] (the default) or Burn's
+/// decomposition, to compare the two in one binary.
+pub fn choose_softmax(args: &[String]) {
+    match arg(args, "--softmax").as_deref() {
+        None | Some("fused") => crate::layers::lean_attention::set_fused_softmax(true),
+        Some("burn") => crate::layers::lean_attention::set_fused_softmax(false),
+        Some(other) => panic!("--softmax {other}: use fused or burn"),
+    }
+}

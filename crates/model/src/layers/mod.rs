@@ -5,6 +5,7 @@ pub mod block;
 pub mod cpu_attention;
 pub mod cpu_conv;
 pub mod cpu_gelu;
+pub mod cube_rows;
 pub mod lean_attention;
 pub mod norm;
 pub mod recompute;

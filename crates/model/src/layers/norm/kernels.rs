@@ -1,8 +1,7 @@
 //! The fused LayerNorm's CubeCL kernels, f32 over the last axis of a `[rows, cols]` view.
 //!
-//! One cube normalises one row: every unit sums a strided share of the row, unit 0 adds the
-//! `NORM_THREADS` shares in a fixed order (so the result does not depend on scheduling) and
-//! publishes the total through shared memory. The mean and the variance are two passes, as
+//! One cube normalises one row, its sums those of `layers::cube_rows` (in a fixed order, so
+//! the result does not depend on scheduling). The mean and the variance are two passes, as
 //! in Burn's decomposition, and every row is centred on its first value first (see the
 //! forward): a row far from zero (a mean of 1e4, a spread of 1) keeps its variance and its
 //! centred values to f32 rounding of the spread, not of the offset.
@@ -11,37 +10,15 @@
 //! row (the 2-D grid of many rows rounds up) leaves as a whole, and units past a row's end
 //! add zeros.
 
+use crate::layers::cube_rows::{cube_sum, ROW_THREADS, SHARED_LEN};
 use cubecl::prelude::*;
 
-/// Units per cube (one row each): a head's 64 channels take one value per unit, the
-/// aggregator's 1024 sixteen.
-pub const NORM_THREADS: u32 = 64;
+/// Units per cube (one row each; the shared reductions' width).
+pub const NORM_THREADS: u32 = ROW_THREADS;
 /// Rows whose parameter gradients one unit of
 /// [`layer_norm_backward_params`](fn@layer_norm_backward_params) sums, one partial row of
 /// `[chunks, cols]` per chunk.
 pub const PARAM_ROWS: u32 = 256;
-/// `NORM_THREADS` as the shared-memory length (a compile-time size).
-const SHARED_LEN: usize = NORM_THREADS as usize;
-
-/// The sum over the cube of every unit's `own`, in unit order; `partial` and `total` are the
-/// cube's shared scratch (`NORM_THREADS` and 1 values). Two barriers: a later call's write of
-/// `total` comes after its own first barrier, which every unit reaches only after reading
-/// this call's total.
-#[cube]
-fn cube_sum(own: f32, partial: &mut [f32], total: &mut [f32]) -> f32 {
-    let t = UNIT_POS_X;
-    partial[t as usize] = own;
-    sync_cube();
-    if t == 0 {
-        let mut acc = 0.0f32;
-        for i in 0..NORM_THREADS {
-            acc += partial[i as usize];
-        }
-        total[0] = acc;
-    }
-    sync_cube();
-    total[0]
-}
 
 /// `y = (x - mean) · rstd · gamma + beta` for each row, `rstd = 1 / sqrt(var + eps)` with
 /// the biased variance; writes each row's mean *relative to its first value* (`rel_mean`)

@@ -6,6 +6,17 @@
 //! `[B, H, N, N]` tensors per layer: about 450 MB per global layer at 350x518 with two
 //! frames, 10 GB over the aggregator, which is what kept a paper-size training step from
 //! fitting in 24 GiB (docs/PERFORMANCE.md).
+//!
+//! The matrix products are Burn's (tensor cores where a backend has them); the row-wise
+//! steps between them go through [`ScoreRows`]. Its default, [`Decomposed`], is Burn's
+//! elementwise ops and reductions: eight kernels a block forward and six backward, each a
+//! pass over the `[B, H, rows, N]` scores. On the CubeCL backends the softmax is one kernel
+//! and each backward step one (`cube.rs`), which a GPU pays for in launches and in passes
+//! over the scores (docs/PERFORMANCE.md, "Kernel launches of a step on a GPU backend"); the
+//! CPU backend keeps the decomposition its parity was checked in.
+
+mod cube;
+pub mod kernels;
 
 use burn::backend::autodiff::checkpoint::{base::Checkpointer, strategy::CheckpointStrategy};
 use burn::backend::autodiff::grads::Gradients;
@@ -15,6 +26,21 @@ use burn::backend::tensor::FloatTensor;
 use burn::backend::Dispatch;
 use burn::backend::{backend_extension, Backend, ExtensionType, Scalar, TensorMetadata};
 use burn::tensor::{Slice, Tensor};
+use std::sync::atomic::{AtomicBool, Ordering};
+
+/// Whether the CubeCL backends take the fused row kernels (on by default; the benchmarks'
+/// `--softmax burn` turns them off to measure Burn's decomposition).
+static FUSED: AtomicBool = AtomicBool::new(true);
+
+/// Switches the fused row kernels on or off for the whole process.
+pub fn set_fused_softmax(on: bool) {
+    FUSED.store(on, Ordering::Relaxed);
+}
+
+/// Whether the fused row kernels are on ([`set_fused_softmax`]).
+pub fn fused_softmax_on() -> bool {
+    FUSED.load(Ordering::Relaxed)
+}
 
 /// Elements of one block's `[B, H, rows, N]` scores: blocks are sized to stay near this
 /// (64 MB in f32), whatever N.
@@ -40,7 +66,7 @@ pub trait LeanAttentionOps: Backend {
         scale: f64,
         block: usize,
     ) -> (FloatTensor<Self>, FloatTensor<Self>) {
-        forward::<Self>(q, k, v, scale, block)
+        forward::<Self, Decomposed>(q, k, v, scale, block)
     }
 
     /// Vector-Jacobian product of the output w.r.t. q, k and v.
@@ -55,12 +81,78 @@ pub trait LeanAttentionOps: Backend {
         scale: f64,
         block: usize,
     ) -> AttentionGrads<Self> {
-        backward::<Self>(q, k, v, out, lse, grad, scale, block)
+        backward::<Self, Decomposed>(q, k, v, out, lse, grad, scale, block)
     }
 }
 
 impl LeanAttentionOps for burn::backend::Flex {}
-impl LeanAttentionOps for burn_cubecl::CubeBackend {}
+
+/// The row-wise steps of the blocked recurrence on one block of scores, `qk = q_block kᵀ`
+/// of shape `[B, H, rows, N]` (unscaled), its rows' statistics `[B, H, rows, 1]`.
+pub trait ScoreRows<B: Backend> {
+    /// `(softmax(qk · scale) v, log-sum-exp of qk · scale)`.
+    fn attend(
+        qk: FloatTensor<B>,
+        v: FloatTensor<B>,
+        scale: f64,
+    ) -> (FloatTensor<B>, FloatTensor<B>);
+    /// The probabilities again from the log-sum-exp: `exp(qk · scale - lse)`.
+    fn probs(qk: FloatTensor<B>, lse: FloatTensor<B>, scale: f64) -> FloatTensor<B>;
+    /// The softmax VJP, scaled back to `qk`: `p · (dp - delta) · scale`.
+    fn score_grad(
+        p: FloatTensor<B>,
+        dp: FloatTensor<B>,
+        delta: FloatTensor<B>,
+        scale: f64,
+    ) -> FloatTensor<B>;
+    /// `Σ a · b` over the last axis, kept as an axis of 1.
+    fn row_dot(a: FloatTensor<B>, b: FloatTensor<B>) -> FloatTensor<B>;
+}
+
+/// [`ScoreRows`] in Burn's ops: what the CPU backend runs, and the CubeCL backends for
+/// other float types or with the kernels switched off.
+#[derive(Debug)]
+pub struct Decomposed;
+
+impl<B: Backend> ScoreRows<B> for Decomposed {
+    fn attend(
+        qk: FloatTensor<B>,
+        v: FloatTensor<B>,
+        scale: f64,
+    ) -> (FloatTensor<B>, FloatTensor<B>) {
+        let s = B::float_mul_scalar(qk, Scalar::Float(scale));
+        let m = B::float_max_dim(s.clone(), 3);
+        let p = B::float_exp(B::float_sub(s, m.clone()));
+        let l = B::float_sum_dim(p.clone(), 3);
+        // The division after the product: `[rows, D]` values rather than `[rows, N]`.
+        let out = B::float_div(B::float_matmul(p, v), l.clone());
+        (out, B::float_add(m, B::float_log(l)))
+    }
+
+    fn probs(qk: FloatTensor<B>, lse: FloatTensor<B>, scale: f64) -> FloatTensor<B> {
+        B::float_exp(B::float_sub(
+            B::float_mul_scalar(qk, Scalar::Float(scale)),
+            lse,
+        ))
+    }
+
+    fn score_grad(
+        p: FloatTensor<B>,
+        dp: FloatTensor<B>,
+        delta: FloatTensor<B>,
+        scale: f64,
+    ) -> FloatTensor<B> {
+        B::float_mul_scalar(
+            B::float_mul(p, B::float_sub(dp, delta)),
+            Scalar::Float(scale),
+        )
+    }
+
+    fn row_dot(a: FloatTensor<B>, b: FloatTensor<B>) -> FloatTensor<B> {
+        let last = a.shape().num_dims() - 1;
+        B::float_sum_dim(B::float_mul(a, b), last)
+    }
+}
 
 /// Query rows per block for `[b, h, _, nk]` scores.
 fn block_rows(dims: &[usize], nk: usize, block: usize) -> usize {
@@ -80,12 +172,8 @@ fn rows<B: Backend>(t: &FloatTensor<B>, r: std::ops::Range<usize>) -> FloatTenso
     )
 }
 
-/// `q_block kᵀ · scale`.
-fn scores<B: Backend>(qb: FloatTensor<B>, kt: &FloatTensor<B>, scale: f64) -> FloatTensor<B> {
-    B::float_mul_scalar(B::float_matmul(qb, kt.clone()), Scalar::Float(scale))
-}
-
-fn forward<B: Backend>(
+/// The blocked forward, its row steps `R`'s.
+pub fn forward<B: Backend, R: ScoreRows<B>>(
     q: FloatTensor<B>,
     k: FloatTensor<B>,
     v: FloatTensor<B>,
@@ -98,18 +186,26 @@ fn forward<B: Backend>(
     let step = block_rows(&dims, nk, block);
     let (mut outs, mut lses) = (Vec::new(), Vec::new());
     for r0 in (0..nq).step_by(step) {
-        let s = scores::<B>(rows::<B>(&q, r0..(r0 + step).min(nq)), &kt, scale);
-        let m = B::float_max_dim(s.clone(), 3);
-        let p = B::float_exp(B::float_sub(s, m.clone()));
-        let l = B::float_sum_dim(p.clone(), 3);
-        outs.push(B::float_div(B::float_matmul(p, v.clone()), l.clone()));
-        lses.push(B::float_add(m, B::float_log(l)));
+        let qk = B::float_matmul(rows::<B>(&q, r0..(r0 + step).min(nq)), kt.clone());
+        let (out, lse) = R::attend(qk, v.clone(), scale);
+        outs.push(out);
+        lses.push(lse);
     }
-    (B::float_cat(outs, 2), B::float_cat(lses, 2))
+    (cat::<B>(outs), cat::<B>(lses))
 }
 
+/// The blocks along the query axis; one block is itself (no copy).
+fn cat<B: Backend>(mut parts: Vec<FloatTensor<B>>) -> FloatTensor<B> {
+    if parts.len() == 1 {
+        parts.pop().expect("one part")
+    } else {
+        B::float_cat(parts, 2)
+    }
+}
+
+/// The recomputing backward, its row steps `R`'s.
 #[allow(clippy::too_many_arguments)]
-fn backward<B: Backend>(
+pub fn backward<B: Backend, R: ScoreRows<B>>(
     q: FloatTensor<B>,
     k: FloatTensor<B>,
     v: FloatTensor<B>,
@@ -122,7 +218,7 @@ fn backward<B: Backend>(
     let dims = q.shape().to_vec();
     let (nq, nk) = (dims[2], k.shape()[2]);
     // Δ_i = Σ_d dO_id O_id = Σ_j P_ij dP_ij: the softmax VJP's row term.
-    let delta = B::float_sum_dim(B::float_mul(grad.clone(), out), 3);
+    let delta = R::row_dot(grad.clone(), out);
     let kt = B::float_swap_dims(k.clone(), 2, 3);
     let vt = B::float_swap_dims(v.clone(), 2, 3);
     let step = block_rows(&dims, nk, block);
@@ -136,25 +232,20 @@ fn backward<B: Backend>(
         let r = r0..(r0 + step).min(nq);
         let qb = rows::<B>(&q, r.clone());
         let gb = rows::<B>(&grad, r.clone());
-        let p = B::float_exp(B::float_sub(
-            scores::<B>(qb.clone(), &kt, scale),
-            rows::<B>(&lse, r.clone()),
-        ));
+        let qk = B::float_matmul(qb.clone(), kt.clone());
+        let p = R::probs(qk, rows::<B>(&lse, r.clone()), scale);
         dv = acc(
             dv,
             B::float_matmul(B::float_swap_dims(p.clone(), 2, 3), gb.clone()),
         );
         let dp = B::float_matmul(gb, vt.clone());
-        let ds = B::float_mul_scalar(
-            B::float_mul(p, B::float_sub(dp, rows::<B>(&delta, r))),
-            Scalar::Float(scale),
-        );
+        let ds = R::score_grad(p, dp, rows::<B>(&delta, r), scale);
         dq.push(B::float_matmul(ds.clone(), k.clone()));
         dk = acc(dk, B::float_matmul(B::float_swap_dims(ds, 2, 3), qb));
     }
     let zeros = || B::float_mul_scalar(v.clone(), Scalar::Float(0.0));
     AttentionGrads {
-        q: B::float_cat(dq, 2),
+        q: cat::<B>(dq),
         k: dk.unwrap_or_else(zeros),
         v: dv.unwrap_or_else(zeros),
     }

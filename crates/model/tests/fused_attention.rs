@@ -1,0 +1,210 @@
+//! The lean attention's fused row kernels (softmax, probabilities from the log-sum-exp, the
+//! softmax VJP, the row dot) on wgpu against Burn's attention in f64 on the CPU: output and
+//! the three gradients, on friendly, sharp and extreme rows, rows shorter and longer than a
+//! cube, several query blocks, and more rows than one grid axis holds.
+
+use burn::tensor::module::attention;
+use burn::tensor::ops::AttentionModuleOptions;
+use burn::tensor::{DType, Device, Tensor, TensorData};
+use envision4d_model::bench::count_launches;
+use envision4d_model::layers::lean_attention::{lean_attention_blocked, set_fused_softmax};
+use std::sync::Mutex;
+
+/// The launch counter and the fused switch are process-wide: these tests take turns.
+static SERIAL: Mutex<()> = Mutex::new(());
+
+fn gpu() -> Option<Device> {
+    envision4d_splat::testkit::wgpu_test_device()
+}
+
+/// Turns the fused kernels off until dropped, so a failing assertion cannot leave them off.
+struct Decomposed;
+
+impl Decomposed {
+    fn new() -> Self {
+        set_fused_softmax(false);
+        Decomposed
+    }
+}
+
+impl Drop for Decomposed {
+    fn drop(&mut self) {
+        set_fused_softmax(true);
+    }
+}
+
+/// Seeded values in [-1, 1) (an LCG), rounded to f32 so both sides see the same inputs.
+fn uniform(len: usize, seed: u64) -> Vec<f64> {
+    let mut s = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1;
+    (0..len)
+        .map(|_| {
+            s = s
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            ((s >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0) as f32 as f64
+        })
+        .collect()
+}
+
+fn tensor(v: &[f64], shape: [usize; 4], device: &Device, dtype: DType) -> Tensor<4> {
+    Tensor::from_data(
+        TensorData::new(v.to_vec(), shape).convert_dtype(dtype),
+        (device, dtype),
+    )
+}
+
+fn host(t: Tensor<4>) -> Vec<f64> {
+    t.into_data()
+        .convert::<f64>()
+        .try_to_vec::<f64>()
+        .expect("f64")
+}
+
+/// `max |a - b| / max(1e-30, max |b|)`.
+fn rel_err(a: &[f64], b: &[f64]) -> f64 {
+    let scale = b.iter().fold(1e-30f64, |m, x| m.max(x.abs()));
+    a.iter()
+        .zip(b)
+        .fold(0.0f64, |m, (x, y)| m.max((x - y).abs()))
+        / scale
+}
+
+/// One case: q `[b, h, nq, d]`, k and v `[b, h, nk, d]`, q scaled by `gain` (how sharp
+/// the rows are), blocks of about `block` score elements.
+#[derive(Debug, Clone, Copy)]
+struct Case {
+    dims: [usize; 5],
+    gain: f64,
+    block: usize,
+}
+
+/// Output and the q/k/v gradients of `sum(attn(q, k, v) · w)`: `lean` through the op,
+/// otherwise Burn's attention.
+fn run(case: Case, device: &Device, dtype: DType, lean: bool) -> [Vec<f64>; 4] {
+    let [b, h, nq, nk, d] = case.dims;
+    let q = uniform(b * h * nq * d, 1)
+        .into_iter()
+        .map(|x| x * case.gain)
+        .collect::<Vec<_>>();
+    let (qs, ks) = ([b, h, nq, d], [b, h, nk, d]);
+    let q = tensor(&q, qs, device, dtype).require_grad();
+    let k = tensor(&uniform(b * h * nk * d, 2), ks, device, dtype).require_grad();
+    let v = tensor(&uniform(b * h * nk * d, 3), ks, device, dtype).require_grad();
+    let w = tensor(&uniform(b * h * nq * d, 4), qs, device, dtype);
+    let out = if lean {
+        lean_attention_blocked(q.clone(), k.clone(), v.clone(), case.block)
+    } else {
+        let options = AttentionModuleOptions::default();
+        attention(q.clone(), k.clone(), v.clone(), None, None, options)
+    };
+    let g = (out.clone() * w).sum().backward();
+    let grad = |t: &Tensor<4>| host(t.grad(&g).expect("a gradient"));
+    [host(out), grad(&q), grad(&k), grad(&v)]
+}
+
+const NAMES: [&str; 4] = ["out", "dq", "dk", "dv"];
+
+/// The cases, and the worst relative error each tensor may have against f64.
+fn cases() -> Vec<(Case, f64)> {
+    let case = |dims, gain, block| Case { dims, gain, block };
+    vec![
+        // Friendly rows; one key (the softmax is 1 and every score gradient 0).
+        (case([2, 3, 37, 29, 8], 1.0, 1 << 24), 2e-6),
+        (case([1, 2, 5, 1, 4], 1.0, 1 << 24), 2e-6),
+        // Rows longer than a cube (300 keys: about five per unit), three query blocks and a
+        // partial fourth.
+        (case([1, 2, 70, 300, 16], 1.0, 2 * 300 * 20), 2e-6),
+        // Sharp rows (logits up to about 40) and extreme ones (up to about 4e3: exp
+        // overflows f32 without the max shift, every row one-hot). An f32 logit near 4e3
+        // is only known to half an ulp, 2.4e-4, so the weights of nearly tied keys, and dq
+        // through them, carry relative errors of that order on any f32 path (Burn's
+        // decomposition measures 4.8e-4 on this case): the bound is that conditioning.
+        (case([2, 2, 33, 65, 8], 40.0, 1 << 24), 2e-5),
+        (case([1, 2, 17, 64, 8], 4e3, 1 << 24), 1e-3),
+        // More rows (B·H·Nq = 70,000) than one grid axis holds (65,535 cubes).
+        (case([1, 1, 70_000, 3, 4], 1.0, 1 << 24), 2e-6),
+    ]
+}
+
+/// Guards the fused row kernels and their wiring into the blocked recurrence (the max
+/// shift, the normalised probabilities, the log-sum-exp the backward recomputes from, the
+/// VJP's row term, statistics rows against score rows, the 2-D grid): on wgpu they equal
+/// Burn's attention in f64 to f32 rounding, on extreme rows too, and so does the
+/// decomposition they replace on the same device, which they never do worse than.
+#[test]
+fn fused_attention_rows_equal_f64_attention_on_wgpu() {
+    let _serial = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let Some(gpu) = gpu() else { return };
+    let device = gpu.autodiff();
+    let oracle = Device::flex().autodiff();
+    for (case, tolerance) in cases() {
+        let want = run(case, &oracle, DType::F64, false);
+        let fused = run(case, &device, DType::F32, true);
+        let decomposed = {
+            let _off = Decomposed::new();
+            run(case, &device, DType::F32, true)
+        };
+        for i in 0..4 {
+            let (e, e_dec) = (
+                rel_err(&fused[i], &want[i]),
+                rel_err(&decomposed[i], &want[i]),
+            );
+            println!(
+                "{case:?} {}: fused {e:.2e}, decomposed {e_dec:.2e}",
+                NAMES[i]
+            );
+            assert!(
+                e <= tolerance,
+                "{case:?}: {} relative error {e:.3e} over {tolerance:.0e}",
+                NAMES[i]
+            );
+            // And no worse than the decomposition it replaces (twice its error, plus a
+            // margin for a different summation order on rows it gets exactly right).
+            assert!(
+                e <= 2.0 * e_dec + 1e-6,
+                "{case:?}: {} fused error {e:.3e} against decomposed {e_dec:.3e}",
+                NAMES[i]
+            );
+        }
+    }
+}
+
+/// Guards the launch savings the kernels exist for: one block's forward and backward on
+/// wgpu launch at least ten fewer kernels fused than decomposed (the softmax's eight become
+/// one, the backward's six become three), with the same output.
+#[test]
+fn fused_attention_rows_launch_fewer_kernels() {
+    let _serial = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let Some(gpu) = gpu() else { return };
+    let device = gpu.autodiff();
+    let case = Case {
+        dims: [1, 2, 24, 24, 8],
+        gain: 1.0,
+        block: 1 << 24,
+    };
+    // Warm the kernel caches and autotune first, so both counts see settled matmuls.
+    let _ = run(case, &device, DType::F32, true);
+    {
+        let _off = Decomposed::new();
+        let _ = run(case, &device, DType::F32, true);
+    }
+    let (fused, on) = count_launches(false, || run(case, &device, DType::F32, true));
+    let (decomposed, off) = {
+        let _off = Decomposed::new();
+        count_launches(false, || run(case, &device, DType::F32, true))
+    };
+    let (on, off) = (on.total(), off.total());
+    println!("launches of one block, forward and backward: fused {on}, decomposed {off}");
+    assert!(
+        on + 10 <= off,
+        "fused {on} launches against decomposed {off}"
+    );
+    for i in 0..4 {
+        let e = rel_err(&fused[i], &decomposed[i]);
+        assert!(
+            e < 1e-5,
+            "{}: fused and decomposed differ by {e:.2e}",
+            NAMES[i]
+        );
+    }
+}
