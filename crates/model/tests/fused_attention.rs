@@ -70,12 +70,14 @@ fn rel_err(a: &[f64], b: &[f64]) -> f64 {
 }
 
 /// One case: q `[b, h, nq, d]`, k and v `[b, h, nk, d]`, q scaled by `gain` (how sharp
-/// the rows are), blocks of about `block` score elements.
+/// the rows are), blocks of about `block` score elements; `swapped`: the loss reads the
+/// output through `swap_dims(1, 2)`, as the model does, so its gradient arrives strided.
 #[derive(Debug, Clone, Copy)]
 struct Case {
     dims: [usize; 5],
     gain: f64,
     block: usize,
+    swapped: bool,
 }
 
 /// Output and the q/k/v gradients of `sum(attn(q, k, v) · w)`: `lean` through the op,
@@ -97,7 +99,12 @@ fn run(case: Case, device: &Device, dtype: DType, lean: bool) -> [Vec<f64>; 4] {
         let options = AttentionModuleOptions::default();
         attention(q.clone(), k.clone(), v.clone(), None, None, options)
     };
-    let g = (out.clone() * w).sum().backward();
+    let loss = if case.swapped {
+        (out.clone().swap_dims(1, 2) * w.swap_dims(1, 2)).sum()
+    } else {
+        (out.clone() * w).sum()
+    };
+    let g = loss.backward();
     let grad = |t: &Tensor<4>| host(t.grad(&g).expect("a gradient"));
     [host(out), grad(&q), grad(&k), grad(&v)]
 }
@@ -106,14 +113,22 @@ const NAMES: [&str; 4] = ["out", "dq", "dk", "dv"];
 
 /// The cases, and the worst relative error each tensor may have against f64.
 fn cases() -> Vec<(Case, f64)> {
-    let case = |dims, gain, block| Case { dims, gain, block };
+    let case = |dims, gain, block| Case {
+        dims,
+        gain,
+        block,
+        swapped: false,
+    };
+    let swapped = |c: Case| Case { swapped: true, ..c };
     vec![
         // Friendly rows; one key (the softmax is 1 and every score gradient 0).
         (case([2, 3, 37, 29, 8], 1.0, 1 << 24), 2e-6),
+        (swapped(case([2, 3, 37, 29, 8], 1.0, 1 << 24)), 2e-6),
         (case([1, 2, 5, 1, 4], 1.0, 1 << 24), 2e-6),
         // Rows longer than a cube (300 keys: about five per unit), three query blocks and a
         // partial fourth.
         (case([1, 2, 70, 300, 16], 1.0, 2 * 300 * 20), 2e-6),
+        (swapped(case([1, 2, 70, 300, 16], 1.0, 2 * 300 * 20)), 2e-6),
         // Sharp rows (logits up to about 40) and extreme ones (up to about 4e3: exp
         // overflows f32 without the max shift, every row one-hot). An f32 logit near 4e3
         // is only known to half an ulp, 2.4e-4, so the weights of nearly tied keys, and dq
@@ -128,7 +143,8 @@ fn cases() -> Vec<(Case, f64)> {
 
 /// Guards the fused row kernels and their wiring into the blocked recurrence (the max
 /// shift, the normalised probabilities, the log-sum-exp the backward recomputes from, the
-/// VJP's row term, statistics rows against score rows, the 2-D grid): on wgpu they equal
+/// VJP's row term, read in place from a strided gradient, statistics rows against score
+/// rows, the 2-D grid): on wgpu they equal
 /// Burn's attention in f64 to f32 rounding, on extreme rows too, and so does the
 /// decomposition they replace on the same device, which they never do worse than.
 #[test]
@@ -181,6 +197,7 @@ fn fused_attention_rows_launch_fewer_kernels() {
         dims: [1, 2, 24, 24, 8],
         gain: 1.0,
         block: 1 << 24,
+        swapped: false,
     };
     // Warm the kernel caches and autotune first, so both counts see settled matmuls.
     let _ = run(case, &device, DType::F32, true);

@@ -1,5 +1,6 @@
 //! Device buffers of the CubeCL rasterizer: flat views, uploads and zero-filled outputs, each
-//! checked against the device's storage-binding limit first.
+//! checked against the device's storage-binding limit first (the check the model's and the
+//! optimiser's kernels use too).
 
 use burn::backend::ops::FloatTensorOps;
 use burn::backend::TensorMetadata;
@@ -25,9 +26,9 @@ pub fn check_binding(like: &CubeTensor, what: &str, elems: usize) {
     let bytes = (elems as u64).saturating_mul(4);
     if bytes > limit {
         panic!(
-            "splat (CubeCL): the {what} buffer needs {bytes} bytes but this device binds at most \
-             {limit} bytes per storage buffer; render fewer Gaussians or fewer/smaller views per \
-             call, or use the CPU backend"
+            "CubeCL: the {what} buffer needs {bytes} bytes but this device binds at most \
+             {limit} bytes per storage buffer; give one call less (fewer Gaussians or \
+             fewer/smaller views per render, a smaller batch or image), or use the CPU backend"
         );
     }
 }

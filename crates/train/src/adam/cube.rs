@@ -10,7 +10,7 @@ use burn::tensor::{DType, Shape};
 use burn_cubecl::ops::numeric::empty_device_dtype;
 use burn_cubecl::CubeBackend;
 use cubecl::{calculate_cube_count_elemwise, CubeDim};
-use envision4d_splat::kernels::buffers::flat;
+use envision4d_splat::kernels::buffers::{check_binding, flat};
 
 impl AdamOps for CubeBackend {
     fn adam_update(
@@ -29,6 +29,7 @@ impl AdamOps for CubeBackend {
             return decomposed::<Self>(param, grad, moment_1, moment_2, step);
         }
         let param = flat(param);
+        check_binding(&param, "Adam moment", n);
         let empty = || {
             empty_device_dtype(
                 param.client.clone(),

@@ -33,6 +33,18 @@ fn rows_of(t: &CubeTensor) -> Option<(usize, usize)> {
     (ok && u32::try_from(n).is_ok()).then(|| (n / cols, cols))
 }
 
+/// Whether the kernels may read `t` in its own strides: f32, stored untiled (its shape and
+/// strides are then the logical ones), every element at an offset below 2^32.
+fn in_place(t: &CubeTensor) -> bool {
+    let dims = t.shape().to_vec();
+    let last: usize = dims
+        .iter()
+        .zip(t.meta.strides().iter())
+        .map(|(&d, &s)| d.saturating_sub(1).saturating_mul(s))
+        .fold(0usize, usize::saturating_add);
+    t.dtype() == DType::F32 && !t.meta.is_tiled() && u32::try_from(last).is_ok()
+}
+
 /// A new uninitialised f32 buffer of `len` elements on `like`'s device, checked against the
 /// device's binding limit.
 fn empty(like: &CubeTensor, what: &str, len: usize) -> CubeTensor {
@@ -133,7 +145,11 @@ impl ScoreRows<CubeBackend> for Fused {
             return <Decomposed as ScoreRows<CubeBackend>>::row_dot(a, b);
         };
         let shape = a.shape();
-        let (a, b) = (flat(a), flat(b));
+        // Read in place, in each tensor's strides: the gradient arrives as a swapped view,
+        // which `flat` would copy first. Offsets are u32 like the rest (see `rows_of`).
+        if !in_place(&a) || !in_place(&b) {
+            return <Decomposed as ScoreRows<CubeBackend>>::row_dot(a, b);
+        }
         let out = empty(&a, "attention row sums", rows);
         row_dot::launch(
             &a.client,

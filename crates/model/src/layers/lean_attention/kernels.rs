@@ -1,7 +1,7 @@
 //! The lean attention's row kernels, f32 over `[rows, cols]` views of a block of scores
 //! (`rows = B · H · query rows`, `cols = N` keys) and its `[rows]` statistics.
 //!
-//! The softmax and the row dot product run one cube per row with the ordered reductions of
+//! The softmax and the row dot product run one cube per row (the row dot on strided views) with the ordered reductions of
 //! `layers::cube_rows`; the two backward steps are elementwise, one unit per score.
 
 use crate::layers::cube_rows::{cube_max, cube_sum, ROW_THREADS, SHARED_LEN};
@@ -63,7 +63,25 @@ pub fn softmax_rows(
     }
 }
 
-/// `out[row] = Σ_c a[row, c] · b[row, c]`: the softmax VJP's row term `Δ = Σ dO · O`.
+/// Where row `row` of `t` starts: the row index spread over every axis but the last, in
+/// `t`'s own strides, so a strided view (the swapped gradient attention receives) is read in
+/// place rather than copied first.
+#[cube]
+fn row_start(t: &Tensor<f32>, row: u32) -> u32 {
+    let mut rest = row;
+    let mut at = 0u32;
+    let mut axis = t.rank() - 1;
+    while axis > 0 {
+        axis -= 1;
+        let len = t.shape(axis) as u32;
+        at += (rest % len) * t.stride(axis) as u32;
+        rest /= len;
+    }
+    at
+}
+
+/// `out[row] = Σ_c a[row, c] · b[row, c]`: the softmax VJP's row term `Δ = Σ dO · O`. `a`
+/// and `b` share their shape, each in its own strides; `out` is flat.
 #[cube(launch)]
 pub fn row_dot(a: &Tensor<f32>, b: &Tensor<f32>, out: &mut Tensor<f32>, rows: u32, cols: u32) {
     let row = CUBE_POS as u32;
@@ -71,7 +89,9 @@ pub fn row_dot(a: &Tensor<f32>, b: &Tensor<f32>, out: &mut Tensor<f32>, rows: u3
         terminate!();
     }
     let t = UNIT_POS_X;
-    let base = row * cols;
+    let last = a.rank() - 1;
+    let (a0, b0) = (row_start(a, row), row_start(b, row));
+    let (a_step, b_step) = (a.stride(last) as u32, b.stride(last) as u32);
     let per_unit = cols.div_ceil(ROW_THREADS);
     let mut partial = Shared::<[f32]>::new_slice(SHARED_LEN);
     let mut total = Shared::<[f32]>::new_slice(1usize);
@@ -79,8 +99,7 @@ pub fn row_dot(a: &Tensor<f32>, b: &Tensor<f32>, out: &mut Tensor<f32>, rows: u3
     for k in 0..per_unit {
         let c = t + k * ROW_THREADS;
         if c < cols {
-            let i = (base + c) as usize;
-            own += a[i] * b[i];
+            own += a[(a0 + c * a_step) as usize] * b[(b0 + c * b_step) as usize];
         }
     }
     let sum = cube_sum(own, &mut partial, &mut total);

@@ -14,7 +14,7 @@ use burn_cubecl::ops::numeric::empty_device_dtype;
 use burn_cubecl::tensor::CubeTensor;
 use burn_cubecl::CubeBackend;
 use cubecl::{calculate_cube_count_elemwise, CubeDim};
-use envision4d_splat::kernels::buffers::flat;
+use envision4d_splat::kernels::buffers::{check_binding, flat};
 use envision4d_splat::kernels::sort::grid;
 
 /// A `[rows, cols]` view of the input, when the kernels can take it.
@@ -52,8 +52,10 @@ fn as_f32(t: CubeTensor) -> CubeTensor {
     }
 }
 
-/// A new uninitialised f32 buffer of `len` elements on `like`'s device.
+/// A new uninitialised f32 buffer of `len` elements on `like`'s device, checked against the
+/// device's binding limit.
 fn empty(like: &CubeTensor, len: usize) -> CubeTensor {
+    check_binding(like, "LayerNorm", len);
     empty_device_dtype(
         like.client.clone(),
         like.device.clone(),
