@@ -1,5 +1,5 @@
 //! Compiles every CubeCL kernel of the project (the rasterizer's, the model's fused
-//! LayerNorm, the fused Adam, the NaN guard's check) to PTX for an NVIDIA architecture, on a
+//! LayerNorm and attention rows, the fused Adam, the NaN guard's check) to PTX for an NVIDIA architecture, on a
 //! machine without a GPU, through the LLVM route the CUDA runtime takes by default
 //! (`cubecl_llvm::PlironCompiler`, linked into every `cuda` build). A kernel that route
 //! cannot lower fails here, before a GPU lease is spent on it (docs/PERFORMANCE.md,
@@ -23,6 +23,8 @@ use cubecl::prelude::*;
 use cubecl::Compiler;
 use cubecl_llvm::nvptx::ptx_version::PtxVersion;
 use cubecl_llvm::{LlvmTarget, PlironArtifact, PlironCompiler, PlironOptions};
+use envision4d_model::layers::cube_rows::ROW_THREADS;
+use envision4d_model::layers::lean_attention::kernels as attention;
 use envision4d_model::layers::norm::kernels as norm;
 use envision4d_splat::kernels::rasterize_forward::TILE;
 use envision4d_splat::kernels::splat_grad::{CasAdd, NativeAdd};
@@ -91,20 +93,20 @@ fn tp() -> Arc<TargetProperties> {
     Arc::new(TargetProperties::default())
 }
 
-/// Cube shapes: one row of units, one tile of pixels (the rasterizer's), or one row of a
-/// LayerNorm.
+/// Cube shapes: one row of units, one tile of pixels (the rasterizer's), or the units that
+/// reduce one row (a LayerNorm's, an attention softmax's).
 #[derive(Clone, Copy)]
 enum Shape {
     Line,
     Tile,
-    Norm,
+    Row,
 }
 
 fn s(shape: Shape) -> KernelSettings {
     let dim = match shape {
         Shape::Line => CubeDim::new_1d(LINE),
         Shape::Tile => CubeDim::new_1d(TILE * TILE),
-        Shape::Norm => CubeDim::new_1d(norm::NORM_THREADS),
+        Shape::Row => CubeDim::new_1d(ROW_THREADS),
     };
     KernelSettings::new(*dim, ExecutionMode::Checked, AddressType::U32)
 }
@@ -173,12 +175,16 @@ fn main() {
         kernel!("scan_wrapped", scan::scan_wrapped::ScanWrapped, Line, [T T s s]),
         kernel!("view_radii", view_meta::view_radii::ViewRadii, Line, [T T s s s]),
         kernel!("view_counts", view_meta::view_counts::ViewCounts, Line, [T T s s s]),
-        kernel!("layer_norm_forward", norm::layer_norm_forward::LayerNormForward, Norm, [T T T T T T s s s]),
-        kernel!("layer_norm_backward_input", norm::layer_norm_backward_input::LayerNormBackwardInput, Norm, [T T T T T T s s]),
+        kernel!("layer_norm_forward", norm::layer_norm_forward::LayerNormForward, Row, [T T T T T T s s s]),
+        kernel!("layer_norm_backward_input", norm::layer_norm_backward_input::LayerNormBackwardInput, Row, [T T T T T T s s]),
         kernel!("layer_norm_backward_params", norm::layer_norm_backward_params::LayerNormBackwardParams, Line, [T T T T T T s s s]),
         // Both comptime branches: the first step (no moments read) and the later ones.
         kernel!("adam_update<first>", adam::adam_update::AdamUpdate, Line, [T T T T T T T s s s s s s], true),
         kernel!("adam_update", adam::adam_update::AdamUpdate, Line, [T T T T T T T s s s s s s], false),
+        kernel!("softmax_rows", attention::softmax_rows::SoftmaxRows, Row, [T T T s s s]),
+        kernel!("row_dot", attention::row_dot::RowDot, Row, [T T T s s]),
+        kernel!("probs_from_lse", attention::probs_from_lse::ProbsFromLse, Line, [T T T s s s]),
+        kernel!("score_grad", attention::score_grad::ScoreGrad, Line, [T T T T s s s]),
         kernel!("flag_non_finite", finite::flag_non_finite::FlagNonFinite, Line, [T T s]),
     ];
     let options = PlironOptions {
