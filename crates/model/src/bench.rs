@@ -145,3 +145,14 @@ pub fn choose_softmax(args: &[String]) {
         Some(other) => panic!("--softmax {other}: use fused or burn"),
     }
 }
+
+/// `--rope fused|burn`: the aggregator's rotary embedding on the GPU backends, the one
+/// kernel of [`crate::layers::rope`] per rotation (the default) or Burn's decomposition
+/// (the quarters' flip, two products and a sum, forward and backward).
+pub fn choose_rope(args: &[String]) {
+    match arg(args, "--rope").as_deref() {
+        None | Some("fused") => crate::layers::rope::set_fused_rope(true),
+        Some("burn") => crate::layers::rope::set_fused_rope(false),
+        Some(other) => panic!("--rope {other}: use fused or burn"),
+    }
+}

@@ -78,6 +78,7 @@ fn ptx_check_lists_every_launchable_kernel() {
         "row_dot",
         "probs_from_lse",
         "score_grad",
+        "rope_rotate",
     ] {
         assert!(kernels.contains(outside_splat), "{outside_splat} not found");
     }

@@ -4,6 +4,15 @@
 //! half rotated by its column `x`. Within a half of size `d`, frequencies are
 //! `base^(-2m/d)`, angles are duplicated as `cat(a, a)`, and the rotation is the split-half
 //! ("NeoX") form `v cos + rot(v) sin` with `rot(v) = cat(-v[d/2..], v[..d/2])`.
+//!
+//! On the GPU backends the rotation is one op with its own kernels (`ops.rs`); the CPU
+//! backend runs Burn's ops.
+
+mod cube;
+pub mod kernels;
+mod ops;
+
+pub use ops::{fused_rope_on, rope_rotate, set_fused_rope, RopeOps};
 
 use burn::tensor::{DType, Device, Tensor, TensorData};
 
@@ -71,8 +80,12 @@ impl RopeTables {
         }
     }
 
-    /// Rotates `x` of shape `[B, heads, N, head_dim]`.
+    /// Rotates `x` of shape `[B, heads, N, head_dim]`: on a GPU (CubeCL) device in f32 the
+    /// fused op ([`rope_rotate`]), elsewhere Burn's ops.
     pub fn apply(&self, x: Tensor<4>) -> Tensor<4> {
+        if fused_rope_on() && x.dtype() == DType::F32 && x.device() != Device::flex() {
+            return rope_rotate(x, self.cos.clone(), self.signed_sin.clone());
+        }
         let [b, h, n, d] = x.dims();
         let quarter = d / 4;
         // rot(v) per half: its two quarters q0 q1 -> (-q1, q0), i.e. the quarters swapped
