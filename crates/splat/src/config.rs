@@ -85,8 +85,10 @@ pub enum GradCombine {
     PerPixel,
     /// The units of a plane (warp) sum their parts and one of them adds the sums (gsplat's
     /// warp sum): a plane's worth fewer atomics, 32-fold on NVIDIA. Applies with shared
-    /// batches only (per pixel, the units walk their lists apart), and needs the device's
-    /// subgroup operations even where CubeCL does not report them (lavapipe has them).
+    /// batches only (per pixel, the units walk their lists apart). Taken where the device
+    /// runs subgroup operations, reported or not (lavapipe has them and CubeCL reports none:
+    /// the device is asked once by a probe kernel); where it has none (wgpu on OpenGL) the
+    /// backward adds per pixel and the kernel plan says so.
     PlaneSums,
 }
 

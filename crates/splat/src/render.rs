@@ -282,7 +282,8 @@ pub fn render_each(
 /// none of these choices.
 pub fn kernel_plan(device: &Device, config: &RasterConfig) -> Option<KernelPlan> {
     // Only the device's client is asked; an uninitialised one-element tensor reaches it
-    // without a launch.
+    // without a launch (the plane probe aside: plane sums forced on a device that reports no
+    // plane operations, once per device).
     let like = Tensor::<1>::empty([1], device);
     <Dispatch as SplatOps>::splat_kernel_plan(like.into_dispatch(), *config)
 }

@@ -32,6 +32,7 @@ pub mod launch;
 pub mod launch_backward;
 pub mod math;
 pub mod plan;
+pub mod plane_probe;
 pub mod project_backward;
 pub mod project_forward;
 pub mod radix_sort;

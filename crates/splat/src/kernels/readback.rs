@@ -3,7 +3,7 @@
 //! by validation and handed to the kernels) and one read of its views' intersection totals in
 //! the forward (and one more in a backward that bins again, `BackwardBins::Recompute`).
 
-use burn::backend::ops::IntTensorOps;
+use burn::backend::ops::{FloatTensorOps, IntTensorOps};
 use burn::tensor::read_sync;
 use burn_cubecl::tensor::CubeTensor;
 use burn_cubecl::CubeBackend;
@@ -45,4 +45,15 @@ pub fn read_u32s(t: CubeTensor) -> Vec<u32> {
         .into_iter()
         .map(|x| x as u32)
         .collect()
+}
+
+/// Reads a whole f32 buffer, or `None` where the work that wrote it failed (a launch the
+/// device rejected): the plane probe's answer.
+pub(crate) fn try_read_f32s(t: CubeTensor) -> Option<Vec<f32>> {
+    count_readback();
+    read_sync(CubeBackend::float_into_data(t))
+        .ok()?
+        .convert::<f32>()
+        .try_to_vec::<f32>()
+        .ok()
 }

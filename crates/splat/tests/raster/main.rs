@@ -7,6 +7,7 @@ mod device_sort;
 mod edge;
 mod gradients;
 mod oracle;
+mod plane_fallback;
 mod stacked;
 mod wgpu_parity;
 mod wgpu_pipeline;
