@@ -30,8 +30,9 @@ use envision4d_model::layers::rope::kernels as rope;
 use envision4d_splat::kernels::rasterize_forward::TILE;
 use envision4d_splat::kernels::splat_grad::{CasAdd, NativeAdd};
 use envision4d_splat::kernels::{
-    bin_tiles, camera_grad, project_backward, project_forward, radix_sort, rasterize_backward,
-    rasterize_backward_per_pixel, rasterize_forward, rasterize_forward_per_pixel, scan, view_meta,
+    bin_tiles, camera_grad, plane_probe, project_backward, project_forward, radix_sort,
+    rasterize_backward, rasterize_backward_per_pixel, rasterize_forward,
+    rasterize_forward_per_pixel, scan, view_meta,
 };
 use envision4d_train::adam::kernel as adam;
 use envision4d_train::finite::kernel as finite;
@@ -154,6 +155,12 @@ fn main() {
         kernel!("tile_ranges", bin_tiles::tile_ranges::TileRanges, Line, [T T s s]),
         kernel!("copy_total", bin_tiles::copy_total::CopyTotal, Line, [T T s s]),
         kernel!("camera_grad_matrices", camera_grad::camera_grad_matrices::CameraGradMatrices, Line, [T T T s]),
+        kernel!(
+            "plane_probe",
+            plane_probe::plane_probe::PlaneProbe,
+            Line,
+            [T]
+        ),
         kernel!("project_backward", project_backward::project_backward::ProjectBackward, Line, [T T T T T T T T T T T T s s s s s]),
         kernel!("project_forward", project_forward::project_forward::ProjectForward, Line, [T T T T T T T T s s s s s s s s]),
         kernel!("radix_count", radix_sort::radix_count::RadixCount, Line, [T T s s s]),

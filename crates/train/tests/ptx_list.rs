@@ -51,9 +51,12 @@ fn rust_files(dir: &Path, out: &mut Vec<std::path::PathBuf>) {
 fn ptx_check_lists_every_launchable_kernel() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let check = std::fs::read_to_string(root.join("examples/ptx_check.rs")).unwrap();
+    // Each entry's name is the first string after `kernel!(`, on its line or, where
+    // rustfmt broke a short entry over lines, the next.
     let listed: BTreeSet<String> = check
-        .lines()
-        .filter_map(|l| l.trim().strip_prefix("kernel!(\""))
+        .split("kernel!(")
+        .skip(1)
+        .filter_map(|entry| entry.trim_start().strip_prefix('"'))
         .filter_map(|l| l.split(['"', '<']).next())
         .map(str::to_owned)
         .collect();

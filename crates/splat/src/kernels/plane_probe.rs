@@ -19,7 +19,7 @@ const PROBE_UNITS: u32 = 32;
 /// Unit 0 writes the plane's sum of ones where the plane's vote is true: the plane's width,
 /// at least 1, on a device with subgroups.
 #[cube(launch)]
-fn plane_probe(out: &mut Tensor<f32>) {
+pub fn plane_probe(out: &mut Tensor<f32>) {
     let mut sum = 0.0f32;
     if plane_any(UNIT_POS == 0) {
         sum = plane_sum(1.0f32);
