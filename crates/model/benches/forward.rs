@@ -6,7 +6,7 @@
 //!     [--mode forward|train] [--heads all|none|depth|gaussians|motion] [--image HxW]
 //!     [--future N] [--images FILE.safetensors] [--repeats N] [--chunk N] [--profile]
 //!     [--device cpu|wgpu|cuda] [--precision f32|f16|bf16] [--launches] [--norm fused|burn]
-//!     [--softmax fused|burn] [--rope fused|burn]
+//!     [--softmax fused|burn] [--rope fused|burn] [--residual fused|burn]
 //! ```
 //!
 //! The peak RSS is the host process's; on a GPU `device_reserved_gib` is the device memory
@@ -192,6 +192,7 @@ fn main() {
     envision4d_model::bench::choose_layer_norm(&args);
     envision4d_model::bench::choose_softmax(&args);
     envision4d_model::bench::choose_rope(&args);
+    envision4d_model::bench::choose_residual(&args);
     pass(&model, &images, heads, train); // untimed warm-up
     for _ in 0..repeats {
         let (s, launches) = count_launches(show_launches, || pass(&model, &images, heads, train));

@@ -156,3 +156,14 @@ pub fn choose_rope(args: &[String]) {
         Some(other) => panic!("--rope {other}: use fused or burn"),
     }
 }
+
+/// `--residual fused|burn`: the blocks' LayerScale residual on the GPU backends, the one
+/// kernel of [`crate::layers::residual`] per pass (the default) or Burn's product and sum
+/// (and their backward: a product, a product and reductions).
+pub fn choose_residual(args: &[String]) {
+    match arg(args, "--residual").as_deref() {
+        None | Some("fused") => crate::layers::residual::set_fused_residual(true),
+        Some("burn") => crate::layers::residual::set_fused_residual(false),
+        Some(other) => panic!("--residual {other}: use fused or burn"),
+    }
+}

@@ -8,7 +8,8 @@
 //! cargo bench -p envision4d-train --bench train_step -- [--config configs/waymo.toml]
 //!     [--preset paper|tiny] [--image HxW] [--batch B] [--step S] [--repeats N]
 //!     [--device cpu|wgpu|cuda] [--checkpointing] [--launches] [--norm fused|burn]
-//!     [--adam fused|burn] [--softmax fused|burn] [--rope fused|burn] [--set KEY=VALUE]...
+//!     [--adam fused|burn] [--softmax fused|burn] [--rope fused|burn] [--residual fused|burn]
+//!     [--set KEY=VALUE]...
 //! ```
 //!
 //! `--step` is the schedule step the batch is trained at (default: the first after the
@@ -114,6 +115,7 @@ fn main() {
     envision4d_model::bench::choose_layer_norm(&args);
     envision4d_model::bench::choose_softmax(&args);
     envision4d_model::bench::choose_rope(&args);
+    envision4d_model::bench::choose_residual(&args);
     // `--adam fused|burn`: the optimiser's update on GPU backends, as `--norm` chooses the
     // LayerNorm.
     match arg(&args, "--adam").as_deref() {

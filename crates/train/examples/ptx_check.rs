@@ -1,5 +1,5 @@
 //! Compiles every CubeCL kernel of the project (the rasterizer's, the model's fused
-//! LayerNorm, attention rows and RoPE, the fused Adam, the NaN guard's check) to PTX for an NVIDIA architecture, on a
+//! LayerNorm, attention rows, RoPE and LayerScale residual, the fused Adam, the NaN guard's check) to PTX for an NVIDIA architecture, on a
 //! machine without a GPU, through the LLVM route the CUDA runtime takes by default
 //! (`cubecl_llvm::PlironCompiler`, linked into every `cuda` build). A kernel that route
 //! cannot lower fails here, before a GPU lease is spent on it (docs/PERFORMANCE.md,
@@ -26,6 +26,7 @@ use cubecl_llvm::{LlvmTarget, PlironArtifact, PlironCompiler, PlironOptions};
 use envision4d_model::layers::cube_rows::ROW_THREADS;
 use envision4d_model::layers::lean_attention::kernels as attention;
 use envision4d_model::layers::norm::kernels as norm;
+use envision4d_model::layers::residual::kernels as residual;
 use envision4d_model::layers::rope::kernels as rope;
 use envision4d_splat::kernels::rasterize_forward::TILE;
 use envision4d_splat::kernels::splat_grad::{CasAdd, NativeAdd};
@@ -195,6 +196,10 @@ fn main() {
         kernel!("score_grad", attention::score_grad::ScoreGrad, Line, [T T T T s s s]),
         kernel!("rope_rotate", rope::rope_rotate::RopeRotate, Line, [T T T T s s s s s], false),
         kernel!("rope_rotate<vjp>", rope::rope_rotate::RopeRotate, Line, [T T T T s s s s s], true),
+        kernel!("scaled_residual_forward", residual::scaled_residual_forward::ScaledResidualForward, Line, [T T T T s s]),
+        // Both comptime branches: with the gain's partial sums and without (a frozen gain).
+        kernel!("scaled_residual_backward<gain>", residual::scaled_residual_backward::ScaledResidualBackward, Line, [T T T T T s s s], true),
+        kernel!("scaled_residual_backward", residual::scaled_residual_backward::ScaledResidualBackward, Line, [T T T T T s s s], false),
         kernel!("flag_non_finite", finite::flag_non_finite::FlagNonFinite, Line, [T T s]),
     ];
     let options = PlironOptions {

@@ -82,6 +82,8 @@ fn ptx_check_lists_every_launchable_kernel() {
         "probs_from_lse",
         "score_grad",
         "rope_rotate",
+        "scaled_residual_forward",
+        "scaled_residual_backward",
     ] {
         assert!(kernels.contains(outside_splat), "{outside_splat} not found");
     }

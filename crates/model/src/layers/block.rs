@@ -4,6 +4,7 @@
 use super::attention::{Attention, QkNorm};
 use super::cpu_gelu::gelu;
 use super::norm::layer_norm;
+use super::residual::scaled_residual;
 use super::rope::RopeTables;
 use burn::module::{Module, Param};
 use burn::nn::{LayerNorm, LayerNormConfig, Linear, LinearConfig};
@@ -31,6 +32,12 @@ impl LayerScale {
     pub fn forward(&self, x: Tensor<3>) -> Tensor<3> {
         let dim = self.gamma.dims()[0];
         x * self.gamma.val().reshape([1, 1, dim])
+    }
+
+    /// `x + self.forward(u)`, the block's residual: one fused op on a GPU backend
+    /// ([`scaled_residual`]), the same product and sum elsewhere.
+    pub fn residual(&self, x: Tensor<3>, u: Tensor<3>) -> Tensor<3> {
+        scaled_residual(x, u, self.gamma.val())
     }
 }
 
@@ -98,13 +105,9 @@ impl Block {
 
     /// `x: [B, N, C]`; `rope` only for frame/global blocks.
     pub fn forward(&self, x: Tensor<3>, rope: Option<&RopeTables>) -> Tensor<3> {
-        let x = x.clone()
-            + self
-                .ls1
-                .forward(self.attn.forward(layer_norm(&self.norm1, x), rope));
-        x.clone()
-            + self
-                .ls2
-                .forward(self.mlp.forward(layer_norm(&self.norm2, x)))
+        let attended = self.attn.forward(layer_norm(&self.norm1, x.clone()), rope);
+        let x = self.ls1.residual(x, attended);
+        let mixed = self.mlp.forward(layer_norm(&self.norm2, x.clone()));
+        self.ls2.residual(x, mixed)
     }
 }

@@ -9,6 +9,7 @@ pub mod cube_rows;
 pub mod lean_attention;
 pub mod norm;
 pub mod recompute;
+pub mod residual;
 pub mod rope;
 
 pub use attention::{Attention, QkNorm};
