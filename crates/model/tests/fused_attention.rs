@@ -8,43 +8,9 @@ use burn::tensor::ops::AttentionModuleOptions;
 use burn::tensor::{DType, Device, Tensor, TensorData};
 use envision4d_model::bench::count_launches;
 use envision4d_model::layers::lean_attention::{lean_attention_blocked, set_fused_softmax};
-use std::sync::Mutex;
+use support::{gpu, host, rel_err_floor, turn, uniform, Unfused};
 
-/// The launch counter and the fused switch are process-wide: these tests take turns.
-static SERIAL: Mutex<()> = Mutex::new(());
-
-fn gpu() -> Option<Device> {
-    envision4d_splat::testkit::wgpu_test_device()
-}
-
-/// Turns the fused kernels off until dropped, so a failing assertion cannot leave them off.
-struct Decomposed;
-
-impl Decomposed {
-    fn new() -> Self {
-        set_fused_softmax(false);
-        Decomposed
-    }
-}
-
-impl Drop for Decomposed {
-    fn drop(&mut self) {
-        set_fused_softmax(true);
-    }
-}
-
-/// Seeded values in [-1, 1) (an LCG), rounded to f32 so both sides see the same inputs.
-fn uniform(len: usize, seed: u64) -> Vec<f64> {
-    let mut s = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1;
-    (0..len)
-        .map(|_| {
-            s = s
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            ((s >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0) as f32 as f64
-        })
-        .collect()
-}
+mod support;
 
 fn tensor(v: &[f64], shape: [usize; 4], device: &Device, dtype: DType) -> Tensor<4> {
     Tensor::from_data(
@@ -53,20 +19,9 @@ fn tensor(v: &[f64], shape: [usize; 4], device: &Device, dtype: DType) -> Tensor
     )
 }
 
-fn host(t: Tensor<4>) -> Vec<f64> {
-    t.into_data()
-        .convert::<f64>()
-        .try_to_vec::<f64>()
-        .expect("f64")
-}
-
 /// `max |a - b| / max(1e-30, max |b|)`.
 fn rel_err(a: &[f64], b: &[f64]) -> f64 {
-    let scale = b.iter().fold(1e-30f64, |m, x| m.max(x.abs()));
-    a.iter()
-        .zip(b)
-        .fold(0.0f64, |m, (x, y)| m.max((x - y).abs()))
-        / scale
+    rel_err_floor(a, b, 1e-30)
 }
 
 /// One case: q `[b, h, nq, d]`, k and v `[b, h, nk, d]`, q scaled by `gain` (how sharp
@@ -149,7 +104,7 @@ fn cases() -> Vec<(Case, f64)> {
 /// decomposition they replace on the same device, which they never do worse than.
 #[test]
 fn fused_attention_rows_equal_f64_attention_on_wgpu() {
-    let _serial = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let _turn = turn();
     let Some(gpu) = gpu() else { return };
     let device = gpu.autodiff();
     let oracle = Device::flex().autodiff();
@@ -157,7 +112,7 @@ fn fused_attention_rows_equal_f64_attention_on_wgpu() {
         let want = run(case, &oracle, DType::F64, false);
         let fused = run(case, &device, DType::F32, true);
         let decomposed = {
-            let _off = Decomposed::new();
+            let _off = Unfused::new(set_fused_softmax);
             run(case, &device, DType::F32, true)
         };
         for i in 0..4 {
@@ -190,7 +145,7 @@ fn fused_attention_rows_equal_f64_attention_on_wgpu() {
 /// one, the backward's six become three), with the same output.
 #[test]
 fn fused_attention_rows_launch_fewer_kernels() {
-    let _serial = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let _turn = turn();
     let Some(gpu) = gpu() else { return };
     let device = gpu.autodiff();
     let case = Case {
@@ -202,12 +157,12 @@ fn fused_attention_rows_launch_fewer_kernels() {
     // Warm the kernel caches and autotune first, so both counts see settled matmuls.
     let _ = run(case, &device, DType::F32, true);
     {
-        let _off = Decomposed::new();
+        let _off = Unfused::new(set_fused_softmax);
         let _ = run(case, &device, DType::F32, true);
     }
     let (fused, on) = count_launches(false, || run(case, &device, DType::F32, true));
     let (decomposed, off) = {
-        let _off = Decomposed::new();
+        let _off = Unfused::new(set_fused_softmax);
         count_launches(false, || run(case, &device, DType::F32, true))
     };
     let (on, off) = (on.total(), off.total());

@@ -9,33 +9,9 @@ use envision4d_model::bench::count_launches;
 use envision4d_model::layers::norm::{
     epsilon_of, fused_layer_norm, layer_norm, set_fused_layer_norm, takes_fused,
 };
-use std::sync::Mutex;
+use support::{gpu, host, rel_err_floor, turn, uniform_f64 as uniform, Unfused};
 
-/// The launch counter and the fused switch are process-wide: these tests take turns.
-static SERIAL: Mutex<()> = Mutex::new(());
-
-/// The test GPU (wgpu, lavapipe in CI; CUDA with `ENVISION4D_TEST_GPU=cuda`), `None` where
-/// `ENVISION4D_SKIP_WGPU=1` and no adapter exists.
-fn gpu() -> Option<Device> {
-    envision4d_splat::testkit::wgpu_test_device()
-}
-
-/// Turns the fused op off until dropped, so a failing assertion cannot leave it off for
-/// the next test.
-struct BurnsNorm;
-
-impl BurnsNorm {
-    fn new() -> Self {
-        set_fused_layer_norm(false);
-        BurnsNorm
-    }
-}
-
-impl Drop for BurnsNorm {
-    fn drop(&mut self) {
-        set_fused_layer_norm(true);
-    }
-}
+mod support;
 
 /// What the rows hold.
 #[derive(Debug, Clone, Copy)]
@@ -48,19 +24,6 @@ enum Rows {
     Constant,
     /// Uniform in [-1e-4, 1e-4): a variance below epsilon.
     Tiny,
-}
-
-/// Seeded uniform values in [-1, 1) (an LCG).
-fn uniform(len: usize, seed: u64) -> Vec<f64> {
-    let mut s = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1;
-    (0..len)
-        .map(|_| {
-            s = s
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (s >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
-        })
-        .collect()
 }
 
 /// The input rows, rounded to f32 (both sides see the same values).
@@ -87,20 +50,9 @@ fn tensor<const D: usize>(
     )
 }
 
-fn host<const D: usize>(t: Tensor<D>) -> Vec<f64> {
-    t.into_data()
-        .convert::<f64>()
-        .try_to_vec::<f64>()
-        .expect("f64")
-}
-
 /// `max |a - b| / max(1, max |b|)`.
 fn rel_err(a: &[f64], b: &[f64]) -> f64 {
-    let scale = b.iter().fold(1.0f64, |m, x| m.max(x.abs()));
-    a.iter()
-        .zip(b)
-        .fold(0.0f64, |m, (x, y)| m.max((x - y).abs()))
-        / scale
+    rel_err_floor(a, b, 1.0)
 }
 
 /// `y`, dx, dgamma, dbeta of `sum(y · w)` for a LayerNorm of `[2, rows/2 or 1, cols]`
@@ -198,14 +150,14 @@ fn worst_errors(device: &Device, dtype: DType, fused: bool) -> [f64; 4] {
 /// 5e-3 and dgamma by 2e-2.
 #[test]
 fn fused_kernels_equal_burns_layer_norm_on_wgpu() {
-    let _turn = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let _turn = turn();
     let Some(device) = gpu().map(Device::autodiff) else {
         return;
     };
     assert!(takes_fused(&device, DType::F32));
     let worst = worst_errors(&device, DType::F32, false);
     let burns = {
-        let _burns = BurnsNorm::new();
+        let _burns = Unfused::new(set_fused_layer_norm);
         worst_errors(&device, DType::F32, false)
     };
     eprintln!(
@@ -221,7 +173,7 @@ fn fused_kernels_equal_burns_layer_norm_on_wgpu() {
 /// rounding.
 #[test]
 fn the_node_equals_burns_autodiff_in_f64() {
-    let _turn = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let _turn = turn();
     let worst = worst_errors(&Device::flex().autodiff(), DType::F64, true);
     for (i, e) in worst.into_iter().enumerate() {
         assert!(e < 1e-9, "{}: relative error {e}", NAMES[i]);
@@ -233,7 +185,7 @@ fn the_node_equals_burns_autodiff_in_f64() {
 /// epsilon a norm was built with is read back exactly.
 #[test]
 fn layer_norm_routes_by_device_and_reads_the_epsilon() {
-    let _turn = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let _turn = turn();
     for eps in [1e-6, 1e-5, 1e-12, 0.1, 3.0e-7] {
         let norm = LayerNormConfig::new(4)
             .with_epsilon(eps)
@@ -255,7 +207,7 @@ fn layer_norm_routes_by_device_and_reads_the_epsilon() {
     // The first call initialises the lazy parameters (two fills); count a second.
     let _ = layer_norm(&norm, x.clone());
     let launches = |on: bool| {
-        let _burns = (!on).then(BurnsNorm::new);
+        let _burns = (!on).then(|| Unfused::new(set_fused_layer_norm));
         let (y, counted) = count_launches(false, || layer_norm(&norm, x.clone()));
         (host(y), counted.total())
     };
@@ -274,7 +226,7 @@ fn layer_norm_routes_by_device_and_reads_the_epsilon() {
 /// where the adapter has no f16.
 #[test]
 fn fused_layer_norm_of_large_f16_tokens_is_finite() {
-    let _turn = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let _turn = turn();
     let Some(gpu) = gpu() else {
         return;
     };
@@ -297,7 +249,7 @@ fn fused_layer_norm_of_large_f16_tokens_is_finite() {
 /// gradients), whose backward computes the input gradient alone, in one launch.
 #[test]
 fn many_rows_no_beta_and_frozen_parameters() {
-    let _turn = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let _turn = turn();
     let Some(gpu) = gpu() else {
         return;
     };
@@ -349,7 +301,7 @@ fn many_rows_no_beta_and_frozen_parameters() {
 /// the input gradients of 70,000 rows, whose backward launches on a two-dimensional grid.
 #[test]
 fn strided_inputs_and_a_two_dimensional_backward_grid() {
-    let _turn = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let _turn = turn();
     let Some(gpu) = gpu() else {
         return;
     };

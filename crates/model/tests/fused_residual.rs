@@ -8,50 +8,9 @@ use burn::tensor::{DType, Device, Tensor, TensorData};
 use envision4d_model::bench::count_launches;
 use envision4d_model::layers::residual::kernels::GAIN_ROWS;
 use envision4d_model::layers::residual::{scaled_residual, set_fused_residual};
-use std::sync::Mutex;
+use support::{gpu, host, rel_err, turn, uniform, Unfused};
 
-/// The launch counter and the fused switch are process-wide: these tests take turns.
-static SERIAL: Mutex<()> = Mutex::new(());
-
-fn gpu() -> Option<Device> {
-    envision4d_splat::testkit::wgpu_test_device()
-}
-
-/// Turns the fused residual off until dropped, so a failing assertion cannot leave it off.
-struct BurnOps;
-
-impl BurnOps {
-    fn new() -> Self {
-        set_fused_residual(false);
-        BurnOps
-    }
-}
-
-impl Drop for BurnOps {
-    fn drop(&mut self) {
-        set_fused_residual(true);
-    }
-}
-
-/// Seeded values in [-1, 1) (an LCG), rounded to f32 so both sides see the same inputs.
-fn uniform(len: usize, seed: u64) -> Vec<f64> {
-    let mut s = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1;
-    (0..len)
-        .map(|_| {
-            s = s
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            ((s >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0) as f32 as f64
-        })
-        .collect()
-}
-
-fn host<const D: usize>(t: Tensor<D>) -> Vec<f64> {
-    t.into_data()
-        .convert::<f64>()
-        .try_to_vec::<f64>()
-        .expect("f64")
-}
+mod support;
 
 /// Tokens `[b, n, c]` (`u` scaled by `gain`); `frozen`: γ takes no gradient; `constant`: nor
 /// does `u`.
@@ -138,15 +97,6 @@ fn cases() -> Vec<Case> {
     ]
 }
 
-/// `max |a - b| / max(1e-300, max |b|)`.
-fn rel_err(a: &[f64], b: &[f64]) -> f64 {
-    let scale = b.iter().fold(1e-300f64, |m, x| m.max(x.abs()));
-    a.iter()
-        .zip(b)
-        .fold(0.0f64, |m, (x, y)| m.max((x - y).abs()))
-        / scale
-}
-
 /// Guards the fused residual and its wiring (the channel of each element, the gradient of
 /// the stream passed through, `u`'s gradient scaled by γ, γ's chunked sums and their second
 /// reduction, the gradients skipped for a frozen gain or constant tokens, the 2-D grid): on
@@ -154,7 +104,7 @@ fn rel_err(a: &[f64], b: &[f64]) -> f64 {
 /// rounding; γ's gradient is within recursive summation's bound of the f64 sum.
 #[test]
 fn fused_residual_equals_f64_on_wgpu() {
-    let _serial = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let _turn = turn();
     let Some(gpu) = gpu() else { return };
     let device = gpu.autodiff();
     let oracle = Device::flex().autodiff();
@@ -162,7 +112,7 @@ fn fused_residual_equals_f64_on_wgpu() {
         let (want, scale) = run(case, &oracle, DType::F64);
         let (fused, _) = run(case, &device, DType::F32);
         let (burn, _) = {
-            let _off = BurnOps::new();
+            let _off = Unfused::new(set_fused_residual);
             run(case, &device, DType::F32)
         };
         for (i, name) in ["y", "dx", "du", "dgamma"].into_iter().enumerate() {
@@ -204,14 +154,14 @@ fn fused_residual_equals_f64_on_wgpu() {
 /// product and a reduction for γ, backward), with the same output.
 #[test]
 fn fused_residual_launches_fewer_kernels() {
-    let _serial = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let _turn = turn();
     let Some(gpu) = gpu() else { return };
     let device = gpu.autodiff();
     let case = cases()[0];
     let _ = run(case, &device, DType::F32);
     let ((fused, _), on) = count_launches(false, || run(case, &device, DType::F32));
     let ((burn, _), off) = {
-        let _off = BurnOps::new();
+        let _off = Unfused::new(set_fused_residual);
         count_launches(false, || run(case, &device, DType::F32))
     };
     let (on, off) = (on.total(), off.total());

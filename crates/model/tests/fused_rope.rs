@@ -7,59 +7,9 @@
 use burn::tensor::{DType, Device, Tensor, TensorData};
 use envision4d_model::bench::count_launches;
 use envision4d_model::layers::rope::{frame_positions, set_fused_rope, RopeTables};
-use std::sync::Mutex;
+use support::{gpu, host, rel_err, turn, uniform, Unfused};
 
-/// The launch counter and the fused switch are process-wide: these tests take turns.
-static SERIAL: Mutex<()> = Mutex::new(());
-
-fn gpu() -> Option<Device> {
-    envision4d_splat::testkit::wgpu_test_device()
-}
-
-/// Turns the fused rotation off until dropped, so a failing assertion cannot leave it off.
-struct BurnOps;
-
-impl BurnOps {
-    fn new() -> Self {
-        set_fused_rope(false);
-        BurnOps
-    }
-}
-
-impl Drop for BurnOps {
-    fn drop(&mut self) {
-        set_fused_rope(true);
-    }
-}
-
-/// Seeded values in [-1, 1) (an LCG), rounded to f32 so both sides see the same inputs.
-fn uniform(len: usize, seed: u64) -> Vec<f64> {
-    let mut s = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1;
-    (0..len)
-        .map(|_| {
-            s = s
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            ((s >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0) as f32 as f64
-        })
-        .collect()
-}
-
-fn host(t: Tensor<4>) -> Vec<f64> {
-    t.into_data()
-        .convert::<f64>()
-        .try_to_vec::<f64>()
-        .expect("f64")
-}
-
-/// `max |a - b| / max(1e-300, max |b|)`.
-fn rel_err(a: &[f64], b: &[f64]) -> f64 {
-    let scale = b.iter().fold(1e-300f64, |m, x| m.max(x.abs()));
-    a.iter()
-        .zip(b)
-        .fold(0.0f64, |m, (x, y)| m.max((x - y).abs()))
-        / scale
-}
+mod support;
 
 /// Tokens `[b, h, 1 + rows·cols, d]` scaled by `gain`; `shared`: one table row set for the
 /// whole batch (`[1, 1, N, d]`), else one per element; `offset` moves every patch position
@@ -164,7 +114,7 @@ fn cases() -> Vec<Case> {
 /// rounding and Burn's ops on the same device to an ulp or two.
 #[test]
 fn fused_rope_equals_f64_rotation_on_wgpu() {
-    let _serial = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let _turn = turn();
     let Some(gpu) = gpu() else { return };
     let device = gpu.autodiff();
     let oracle = Device::flex().autodiff();
@@ -172,7 +122,7 @@ fn fused_rope_equals_f64_rotation_on_wgpu() {
         let want = run(case, &oracle, DType::F64);
         let fused = run(case, &device, DType::F32);
         let burn = {
-            let _off = BurnOps::new();
+            let _off = Unfused::new(set_fused_rope);
             run(case, &device, DType::F32)
         };
         for (i, name) in ["y", "dx"].into_iter().enumerate() {
@@ -193,14 +143,14 @@ fn fused_rope_equals_f64_rotation_on_wgpu() {
 /// sum each way), with the same result.
 #[test]
 fn fused_rope_launches_fewer_kernels() {
-    let _serial = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let _turn = turn();
     let Some(gpu) = gpu() else { return };
     let device = gpu.autodiff();
     let case = cases()[0];
     let _ = run(case, &device, DType::F32);
     let (fused, on) = count_launches(false, || run(case, &device, DType::F32));
     let (burn, off) = {
-        let _off = BurnOps::new();
+        let _off = Unfused::new(set_fused_rope);
         count_launches(false, || run(case, &device, DType::F32))
     };
     let (on, off) = (on.total(), off.total());
