@@ -16,15 +16,18 @@ use envision4d_splat::kernels::buffers::{check_binding, flat};
 
 /// `(rows, cols)` of the tokens when the kernels can take them: both token tensors and the
 /// gain in f32, the tokens of one shape, the gain as wide as their rows, not empty, and
-/// flat indices within u32. Forward and backward decide on the same tensors' shapes, so a
-/// node's two passes take the same path.
+/// flat indices and the backward's unit count within u32. Forward and backward decide on
+/// the same tensors' shapes, so a node's two passes take the same path.
 fn layout(a: &CubeTensor, b: &CubeTensor, gamma: &CubeTensor) -> Option<(usize, usize)> {
     let shape = a.shape();
     let cols = *shape.to_vec().last()?;
     let n = shape.num_elements();
     let f32s = [a, b, gamma].iter().all(|t| t.dtype() == DType::F32);
     let fits = b.shape() == shape && gamma.shape().num_elements() == cols;
-    (f32s && fits && n > 0 && u32::try_from(n).is_ok()).then_some((n / cols, cols))
+    // The backward's units number `chunks · cols`, a little over `n`: both must fit u32.
+    let units = cols.checked_mul(n.checked_div(cols)?.div_ceil(GAIN_ROWS as usize))?;
+    let indexable = u32::try_from(n.max(units)).is_ok();
+    (f32s && fits && n > 0 && indexable).then_some((n / cols, cols))
 }
 
 /// A new uninitialised f32 buffer of `len` elements, checked against the binding limit.
