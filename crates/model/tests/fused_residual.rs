@@ -97,11 +97,17 @@ fn cases() -> Vec<Case> {
     ]
 }
 
+/// Whether the test GPU is CUDA (`ENVISION4D_TEST_GPU=cuda`), whose kernels may contract a
+/// product and a sum into one fused multiply-add.
+fn cuda() -> bool {
+    std::env::var("ENVISION4D_TEST_GPU").as_deref() == Ok("cuda")
+}
+
 /// Guards the fused residual and its wiring (the channel of each element, the gradient of
 /// the stream passed through, `u`'s gradient scaled by γ, γ's chunked sums and their second
 /// reduction, the gradients skipped for a frozen gain or constant tokens, the 2-D grid): on
-/// wgpu the output and `u`'s gradient equal Burn's ops bit for bit and the f64 sums to f32
-/// rounding; γ's gradient is within recursive summation's bound of the f64 sum.
+/// wgpu the output and `u`'s gradient equal Burn's ops bit for bit (the output to an ulp on
+/// CUDA) and the f64 sums to f32 rounding; γ's gradient is within recursive summation's bound of the f64 sum.
 #[test]
 fn fused_residual_equals_f64_on_wgpu() {
     let _turn = turn();
@@ -140,10 +146,15 @@ fn fused_residual_equals_f64_on_wgpu() {
                 }
             } else {
                 assert!(e <= 1.2e-7, "{case:?}: {name} relative error {e:.3e}");
-                assert_eq!(
-                    fused[i], burn[i],
-                    "{case:?}: {name} differs from Burn's ops"
-                );
+                if name == "y" && cuda() {
+                    // CUDA's LLVM route may fuse the product and sum into one rounding.
+                    assert!(apart <= 1.2e-7, "{case:?}: y {apart:.3e} from Burn's ops");
+                } else {
+                    assert_eq!(
+                        fused[i], burn[i],
+                        "{case:?}: {name} differs from Burn's ops"
+                    );
+                }
             }
         }
     }

@@ -17,11 +17,12 @@ use std::sync::Mutex;
 const PROBE_UNITS: u32 = 32;
 
 /// Unit 0 writes the plane's sum of ones where the plane's vote is true: the plane's width,
-/// at least 1, on a device with subgroups.
+/// at least 1, on a device with subgroups. It reads the unit's place in its plane too, as
+/// the backward does.
 #[cube(launch)]
 pub fn plane_probe(out: &mut Tensor<f32>) {
     let mut sum = 0.0f32;
-    if plane_any(UNIT_POS == 0) {
+    if plane_any(UNIT_POS == 0 && UNIT_POS_PLANE == 0) {
         sum = plane_sum(1.0f32);
     }
     if UNIT_POS == 0 {

@@ -16,7 +16,8 @@ thread_local! {
 /// How many times this thread's renders have read the device back so far. A render call
 /// reads its cameras once (two tiny tensors in one read, while validating) and, per pass
 /// that bins (the forward; the backward too under `BackwardBins::Recompute`), its views'
-/// intersection totals and wrap flags (8 bytes per view, one read); nothing else comes back.
+/// intersection totals and wrap flags (8 bytes per view, one read); nothing else comes back
+/// but the plane probe's one read (see the module's note).
 /// Tests count with it; it is per thread so parallel tests do not disturb each other.
 pub fn host_readbacks() -> usize {
     READBACKS.with(|c| c.get())

@@ -19,11 +19,21 @@ fn forced() -> RasterConfig {
 }
 
 /// wgpu on OpenGL (Mesa's llvmpipe here), an adapter without subgroups; `None` where the
-/// wgpu tests are skipped on purpose. Panics with what to install where none can be made.
+/// wgpu tests are skipped on purpose (`ENVISION4D_SKIP_WGPU=1`) or the test GPU is CUDA
+/// (`ENVISION4D_TEST_GPU=cuda`: this is a wgpu case). Panics with what to install where
+/// none can be made.
 fn opengl_device() -> Option<Device> {
+    if std::env::var("ENVISION4D_TEST_GPU").as_deref() == Ok("cuda") {
+        eprintln!("SKIP OpenGL fallback: ENVISION4D_TEST_GPU=cuda");
+        return None;
+    }
     wgpu_test_device()?;
     match Device::wgpu_options().graphics_api(WgpuBackend::Gl).init() {
         Ok(device) => Some(device),
+        Err(e) if std::env::var("ENVISION4D_SKIP_WGPU").as_deref() == Ok("1") => {
+            eprintln!("SKIP OpenGL fallback: no adapter ({e}) and ENVISION4D_SKIP_WGPU=1");
+            None
+        }
         Err(e) => panic!(
             "no wgpu adapter on OpenGL ({e}); install Mesa's EGL and GL drivers \
              (libegl1, libegl-mesa0, libgl1-mesa-dri) or set ENVISION4D_SKIP_WGPU=1"

@@ -7,10 +7,12 @@
 use cubecl::prelude::*;
 
 /// Rows per unit of [`scaled_residual_backward`]: the gain's partial sums come out as
-/// `[chunks, cols]`, reduced once more on the host side only when there is more than one.
+/// `[chunks, cols]`, reduced once more on the device only when there is more than one.
 pub const GAIN_ROWS: u32 = 256;
 
-/// `y = x + u · gamma[c]`: the same two roundings as Burn's product then sum.
+/// `y = x + u · gamma[c]`: the same two roundings as Burn's product then sum where the
+/// compiler keeps them apart (WGSL here); CUDA's LLVM route may contract them into one
+/// fused multiply-add, which rounds once.
 #[cube(launch)]
 pub fn scaled_residual_forward(
     x: &Tensor<f32>,

@@ -6,8 +6,9 @@
 //! pass over the tokens; every block does this twice per pass (docs/PERFORMANCE.md, "Kernel
 //! launches of a step on a GPU backend"). On the CubeCL backends the op is one kernel
 //! forward and one backward (`kernels.rs`; a reduction more past [`kernels::GAIN_ROWS`]
-//! rows). The forward rounds exactly as Burn's product then sum, and so does `u`'s
-//! gradient; `γ`'s sums in another order. The CPU backend keeps Burn's ops.
+//! rows). `u`'s gradient rounds exactly as Burn's product, and the forward as Burn's
+//! product then sum on wgpu (CUDA may contract the two into one fused multiply-add);
+//! `γ`'s sums in another order. The CPU backend keeps Burn's ops.
 
 mod cube;
 pub mod kernels;
