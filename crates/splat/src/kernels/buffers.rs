@@ -6,7 +6,7 @@ use burn::backend::ops::FloatTensorOps;
 use burn::backend::TensorMetadata;
 use burn::tensor::{DType, Shape, TensorData};
 use burn_cubecl::kernel::into_contiguous;
-use burn_cubecl::ops::numeric::zeros_client;
+use burn_cubecl::ops::numeric::{empty_device_dtype, zeros_client};
 use burn_cubecl::tensor::CubeTensor;
 use burn_cubecl::CubeBackend;
 
@@ -14,6 +14,19 @@ use burn_cubecl::CubeBackend;
 pub fn flat(t: CubeTensor) -> CubeTensor {
     let n = t.shape().num_elements();
     CubeBackend::float_reshape(into_contiguous(t), Shape::new([n]))
+}
+
+/// A new uninitialised f32 buffer of `len` elements on `like`'s device for the kernel output
+/// `what`, checked against the device's binding limit first (every element is written by
+/// the kernel that takes it).
+pub fn empty_f32(like: &CubeTensor, what: &str, len: usize) -> CubeTensor {
+    check_binding(like, what, len);
+    empty_device_dtype(
+        like.client.clone(),
+        like.device.clone(),
+        Shape::new([len]),
+        DType::F32,
+    )
 }
 
 /// Fails loudly when a buffer of `elems` 4-byte values cannot be bound on this device.

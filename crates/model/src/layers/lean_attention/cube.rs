@@ -11,11 +11,10 @@ use burn::backend::ops::FloatTensorOps;
 use burn::backend::tensor::FloatTensor;
 use burn::backend::TensorMetadata;
 use burn::tensor::{DType, Shape};
-use burn_cubecl::ops::numeric::empty_device_dtype;
 use burn_cubecl::tensor::CubeTensor;
 use burn_cubecl::CubeBackend;
 use cubecl::{calculate_cube_count_elemwise, CubeDim};
-use envision4d_splat::kernels::buffers::{check_binding, flat};
+use envision4d_splat::kernels::buffers::{empty_f32, flat};
 use envision4d_splat::kernels::sort::grid;
 
 /// The row steps on a CubeCL backend.
@@ -45,16 +44,9 @@ fn in_place(t: &CubeTensor) -> bool {
     t.dtype() == DType::F32 && !t.meta.is_tiled() && u32::try_from(last).is_ok()
 }
 
-/// A new uninitialised f32 buffer of `len` elements on `like`'s device, checked against the
-/// device's binding limit.
+/// A new uninitialised f32 buffer of `len` elements (see [`empty_f32`]).
 fn empty(like: &CubeTensor, what: &str, len: usize) -> CubeTensor {
-    check_binding(like, what, len);
-    empty_device_dtype(
-        like.client.clone(),
-        like.device.clone(),
-        Shape::new([len]),
-        DType::F32,
-    )
+    empty_f32(like, what, len)
 }
 
 /// `shape` with its last axis 1: the rows' statistics.

@@ -10,11 +10,10 @@ use burn::backend::ops::FloatTensorOps;
 use burn::backend::tensor::FloatTensor;
 use burn::backend::TensorMetadata;
 use burn::tensor::{DType, Shape};
-use burn_cubecl::ops::numeric::empty_device_dtype;
 use burn_cubecl::tensor::CubeTensor;
 use burn_cubecl::CubeBackend;
 use cubecl::{calculate_cube_count_elemwise, CubeDim};
-use envision4d_splat::kernels::buffers::{check_binding, flat};
+use envision4d_splat::kernels::buffers::{empty_f32, flat};
 use envision4d_splat::kernels::sort::grid;
 
 /// A `[rows, cols]` view of the input, when the kernels can take it.
@@ -52,16 +51,9 @@ fn as_f32(t: CubeTensor) -> CubeTensor {
     }
 }
 
-/// A new uninitialised f32 buffer of `len` elements on `like`'s device, checked against the
-/// device's binding limit.
+/// A new uninitialised f32 buffer of `len` elements (see [`empty_f32`]).
 fn empty(like: &CubeTensor, len: usize) -> CubeTensor {
-    check_binding(like, "LayerNorm", len);
-    empty_device_dtype(
-        like.client.clone(),
-        like.device.clone(),
-        Shape::new([len]),
-        DType::F32,
-    )
+    empty_f32(like, "LayerNorm", len)
 }
 
 impl FusedNormOps for CubeBackend {

@@ -101,7 +101,7 @@ pub trait FusedNormOps: Backend {
 impl FusedNormOps for burn::backend::Flex {}
 
 /// `[C]` as `[1, ..., 1, C]` of the given rank, to broadcast over the rows.
-fn along_last<B: Backend>(v: FloatTensor<B>, rank: usize) -> FloatTensor<B> {
+pub(crate) fn along_last<B: Backend>(v: FloatTensor<B>, rank: usize) -> FloatTensor<B> {
     let c = v.shape().num_elements();
     let dims: Vec<usize> = (0..rank)
         .map(|i| if i + 1 == rank { c } else { 1 })

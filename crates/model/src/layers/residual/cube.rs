@@ -8,11 +8,10 @@ use burn::backend::ops::FloatTensorOps;
 use burn::backend::tensor::FloatTensor;
 use burn::backend::TensorMetadata;
 use burn::tensor::{DType, Shape};
-use burn_cubecl::ops::numeric::empty_device_dtype;
 use burn_cubecl::tensor::CubeTensor;
 use burn_cubecl::CubeBackend;
 use cubecl::{calculate_cube_count_elemwise, CubeDim};
-use envision4d_splat::kernels::buffers::{check_binding, flat};
+use envision4d_splat::kernels::buffers::{empty_f32, flat};
 
 /// `(rows, cols)` of the tokens when the kernels can take them: both token tensors and the
 /// gain in f32, the tokens of one shape, the gain as wide as their rows, not empty, and
@@ -30,15 +29,9 @@ fn layout(a: &CubeTensor, b: &CubeTensor, gamma: &CubeTensor) -> Option<(usize, 
     (f32s && fits && n > 0 && indexable).then_some((n / cols, cols))
 }
 
-/// A new uninitialised f32 buffer of `len` elements, checked against the binding limit.
+/// A new uninitialised f32 buffer of `len` elements (see [`empty_f32`]).
 fn empty(like: &CubeTensor, len: usize) -> CubeTensor {
-    check_binding(like, "scaled residual", len);
-    empty_device_dtype(
-        like.client.clone(),
-        like.device.clone(),
-        Shape::new([len]),
-        DType::F32,
-    )
+    empty_f32(like, "scaled residual", len)
 }
 
 impl ScaledResidualOps for CubeBackend {

@@ -21,6 +21,8 @@ use burn::backend::tensor::FloatTensor;
 use burn::backend::Dispatch;
 use burn::backend::{backend_extension, Backend, TensorMetadata};
 use burn::tensor::{DType, Device, Shape, Tensor};
+
+use super::norm::along_last;
 use std::sync::atomic::{AtomicBool, Ordering};
 
 /// Whether the CubeCL backends take the fused residual (on by default; the benchmarks'
@@ -65,12 +67,7 @@ impl ScaledResidualOps for burn::backend::Flex {}
 
 /// `γ [C]` as `[1, ..., 1, C]` of `like`'s rank.
 fn broadcast_gain<B: Backend>(gamma: FloatTensor<B>, like: &FloatTensor<B>) -> FloatTensor<B> {
-    let rank = like.shape().num_dims();
-    let c = gamma.shape().num_elements();
-    let dims: Vec<usize> = (0..rank)
-        .map(|i| if i + 1 == rank { c } else { 1 })
-        .collect();
-    B::float_reshape(gamma, Shape::from(dims))
+    along_last::<B>(gamma, like.shape().num_dims())
 }
 
 /// The residual in Burn's ops, the same two roundings as `x + u * γ` on tensors.
