@@ -167,3 +167,14 @@ pub fn choose_residual(args: &[String]) {
         Some(other) => panic!("--residual {other}: use fused or burn"),
     }
 }
+
+/// `--qkv fused|burn`: training attention on the GPU backends as one autodiff node from the
+/// q/k/v projection ([`crate::layers::qkv_attention`], the default) or as Burn's reshape,
+/// permutation and three slices, then separate qk-norm, RoPE and attention nodes.
+pub fn choose_qkv(args: &[String]) {
+    match arg(args, "--qkv").as_deref() {
+        None | Some("fused") => crate::layers::qkv_attention::set_packed_qkv(true),
+        Some("burn") => crate::layers::qkv_attention::set_packed_qkv(false),
+        Some(other) => panic!("--qkv {other}: use fused or burn"),
+    }
+}

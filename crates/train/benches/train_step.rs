@@ -9,6 +9,7 @@
 //!     [--preset paper|tiny] [--image HxW] [--batch B] [--step S] [--repeats N]
 //!     [--device cpu|wgpu|cuda] [--checkpointing] [--launches] [--norm fused|burn]
 //!     [--adam fused|burn] [--softmax fused|burn] [--rope fused|burn] [--residual fused|burn]
+//!     [--qkv fused|burn]
 //!     [--set KEY=VALUE]...
 //! ```
 //!
@@ -116,6 +117,7 @@ fn main() {
     envision4d_model::bench::choose_softmax(&args);
     envision4d_model::bench::choose_rope(&args);
     envision4d_model::bench::choose_residual(&args);
+    envision4d_model::bench::choose_qkv(&args);
     // `--adam fused|burn`: the optimiser's update on GPU backends, as `--norm` chooses the
     // LayerNorm.
     match arg(&args, "--adam").as_deref() {

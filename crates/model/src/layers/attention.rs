@@ -2,13 +2,15 @@
 //! LayerNorm of q and k ("qk-norm"), optional 2D RoPE, softmax attention, output projection.
 
 use super::cpu_attention;
-use super::norm::layer_norm;
+use super::lean_attention::BLOCK_ELEMENTS;
+use super::norm::{epsilon_of, layer_norm};
+use super::qkv_attention::{qkv_attention, takes_packed, QkvLayout};
 use super::rope::RopeTables;
 use burn::module::Module;
 use burn::nn::{LayerNorm, LayerNormConfig, Linear, LinearConfig};
 use burn::tensor::module::attention;
 use burn::tensor::ops::AttentionModuleOptions;
-use burn::tensor::{Device, Tensor};
+use burn::tensor::{DType, Device, Tensor};
 
 /// LayerNorm epsilon of the q/k norms (PyTorch default).
 pub const QK_NORM_EPS: f64 = 1e-5;
@@ -51,12 +53,12 @@ impl Attention {
         let [b, n, c] = x.dims();
         let h = self.num_heads;
         let d = c / h;
+        let qkv = self.qkv.forward(x);
+        if let Some(out) = self.packed(qkv.clone(), rope) {
+            return self.proj.forward(out.swap_dims(1, 2).reshape([b, n, c]));
+        }
         // [B, N, 3C] -> [3, B, H, N, d]: the 3C axis is [q | k | v], each split into heads.
-        let qkv = self
-            .qkv
-            .forward(x)
-            .reshape([b, n, 3, h, d])
-            .permute([2, 0, 3, 1, 4]);
+        let qkv = qkv.reshape([b, n, 3, h, d]).permute([2, 0, 3, 1, 4]);
         let part = |i: usize| {
             qkv.clone()
                 .slice([i..i + 1, 0..b, 0..h, 0..n, 0..d])
@@ -85,5 +87,43 @@ impl Attention {
         };
         let out = out.swap_dims(1, 2).reshape([b, n, c]);
         self.proj.forward(out)
+    }
+
+    /// The attention `[B, H, N, d]` as one autodiff node from the projection (see
+    /// `qkv_attention`), where it applies: training on a GPU backend in f32 with the fused
+    /// ops on; `None` elsewhere.
+    fn packed(&self, qkv: Tensor<3>, rope: Option<&RopeTables>) -> Option<Tensor<4>> {
+        let norms = self.q_norm.as_ref().zip(self.k_norm.as_ref());
+        if !takes_packed(&qkv.device(), qkv.dtype(), norms.is_some(), rope.is_some()) {
+            return None;
+        }
+        let mut epsilon = QK_NORM_EPS;
+        let params = match norms {
+            None => None,
+            Some((qn, kn)) => {
+                let (Some(qe), Some(ke)) = (epsilon_of(qn), epsilon_of(kn)) else {
+                    return None;
+                };
+                let (Some(qb), Some(kb)) = (&qn.beta, &kn.beta) else {
+                    return None;
+                };
+                if qe != ke {
+                    return None;
+                }
+                epsilon = qe;
+                let p = [qn.gamma.val(), qb.val(), kn.gamma.val(), kb.val()];
+                if p.iter().any(|t| t.dtype() != DType::F32) {
+                    return None;
+                }
+                Some(p)
+            }
+        };
+        let tables = rope.map(|r| (r.cos.clone(), r.signed_sin.clone()));
+        let layout = QkvLayout {
+            heads: self.num_heads,
+            epsilon,
+            block: BLOCK_ELEMENTS,
+        };
+        Some(qkv_attention(qkv, params, tables, layout))
     }
 }

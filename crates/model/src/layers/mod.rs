@@ -8,6 +8,7 @@ pub mod cpu_gelu;
 pub mod cube_rows;
 pub mod lean_attention;
 pub mod norm;
+pub mod qkv_attention;
 pub mod recompute;
 pub mod residual;
 pub mod rope;
