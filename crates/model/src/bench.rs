@@ -171,6 +171,8 @@ pub fn choose_residual(args: &[String]) {
 /// `--qkv fused|burn`: training attention on the GPU backends as one autodiff node from the
 /// q/k/v projection ([`crate::layers::qkv_attention`], the default) or as Burn's reshape,
 /// permutation and three slices, then separate qk-norm, RoPE and attention nodes.
+/// `--norm burn` and `--rope burn` also turn the one node off (the separate path then runs
+/// Burn's LayerNorm or RoPE ops, which the node does not).
 pub fn choose_qkv(args: &[String]) {
     match arg(args, "--qkv").as_deref() {
         None | Some("fused") => crate::layers::qkv_attention::set_packed_qkv(true),

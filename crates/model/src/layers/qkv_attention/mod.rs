@@ -11,7 +11,8 @@
 //!
 //! Inside, the node runs the same backend ops in the same order as the separate nodes do
 //! ([`FusedNormOps`], [`RopeOps`], [`LeanAttentionOps`]), so values and gradients are the
-//! same bits; only the bookkeeping between them changes. It is taken where all of those take
+//! same values (a negative zero, which the old sum with zeros made positive, stays
+//! negative); only the bookkeeping between them changes. It is taken where all of those take
 //! their fused kernels (CubeCL backends, f32; see [`takes_packed`]); the CPU backend, whose
 //! qk-norm is Burn's own, keeps the separate ops.
 
@@ -249,7 +250,7 @@ pub(crate) fn backward<B: QkvAttentionOps>(
     norms: Option<&QkNorms<B>>,
     rope: Option<&(FloatTensor<B>, FloatTensor<B>)>,
     grad: FloatTensor<B>,
-    needs: NormNeeds,
+    needs: [NormNeeds; 2],
     block: usize,
 ) -> QkvGrads<B> {
     let Saved {
@@ -270,27 +271,34 @@ pub(crate) fn backward<B: QkvAttentionOps>(
     }
     let mut param_grads = None;
     if let (Some(p), Some([qs, ks])) = (norms, normed) {
-        let gq = B::fused_layer_norm_backward(qs.x, p.q_gamma.clone(), qs.mean, qs.rstd, dq, needs);
-        let gk = B::fused_layer_norm_backward(ks.x, p.k_gamma.clone(), ks.mean, ks.rstd, dk, needs);
+        let [q_needs, k_needs] = needs;
+        let gq =
+            B::fused_layer_norm_backward(qs.x, p.q_gamma.clone(), qs.mean, qs.rstd, dq, q_needs);
+        let gk =
+            B::fused_layer_norm_backward(ks.x, p.k_gamma.clone(), ks.mean, ks.rstd, dk, k_needs);
         (dq, dk) = (gq.x, gk.x);
-        if needs.params {
+        // A norm whose parameters are frozen returns placeholders, which its untracked
+        // parents never receive.
+        if q_needs.params || k_needs.params {
             param_grads = Some([gq.gamma, gq.beta, gk.gamma, gk.beta]);
         }
     }
     QkvGrads {
-        qkv: needs.input.then(|| merge::<B>([dq, dk, g.v])),
+        qkv: needs[0].input.then(|| merge::<B>([dq, dk, g.v])),
         norms: param_grads,
     }
 }
 
 /// Whether [`Attention`](super::Attention) takes the one node for these tensors: autodiff on
-/// a CubeCL device, f32 throughout, the switch on, and each part it has on its fused op.
+/// a CubeCL device, f32 throughout, the switch on, and the qk-norm and RoPE, where present,
+/// on their fused ops (else the separate path runs Burn's, so `--norm burn` and `--rope
+/// burn` also turn the one node off). The lean attention's row kernels decide for
+/// themselves inside either path.
 pub fn takes_packed(device: &Device, dtype: DType, has_norms: bool, has_rope: bool) -> bool {
     packed_qkv_on()
         && device.is_autodiff()
         && *device != Device::flex()
         && dtype == DType::F32
-        && super::lean_attention::fused_softmax_on()
         && (!has_norms || super::norm::takes_fused(device, dtype))
         && (!has_rope || super::rope::fused_rope_on())
 }

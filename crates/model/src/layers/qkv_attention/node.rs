@@ -40,11 +40,13 @@ impl<B: QkvAttentionOps, const N: usize> Backward<B, N> for QkvBackward<N> {
             block,
         } = ops.state;
         let tracked = ops.parents.each_ref().map(Option::is_some);
-        // A frozen block's norms need the input gradient only, as their own nodes would.
-        let needs = NormNeeds {
+        // Each norm as its own node would: a frozen one needs the input gradient only.
+        let needs = |gamma: usize| NormNeeds {
             input: tracked[0],
-            params: tracked[1..].iter().any(|t| *t),
+            params: tracked.get(gamma).is_some_and(|t| *t)
+                || tracked.get(gamma + 1).is_some_and(|t| *t),
         };
+        let needs = [needs(1), needs(3)];
         let g = backward::<B>(saved, norms.as_ref(), rope.as_ref(), grad, needs, block);
         let mut parents = ops.parents.into_iter();
         if let (Some(node), Some(dqkv)) = (parents.next().flatten(), g.qkv) {
