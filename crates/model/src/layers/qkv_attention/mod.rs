@@ -51,16 +51,11 @@ pub struct QkvLayout {
     pub block: usize,
 }
 
-/// The qk-norms' parameters, each `[d]`, as the op takes them.
+/// The qk-norms' parameters as the op takes them.
 #[derive(ExtensionType, Clone, Debug)]
 pub enum QkNormParams<B: Backend> {
     Off,
-    On {
-        q_gamma: FloatTensor<B>,
-        q_beta: FloatTensor<B>,
-        k_gamma: FloatTensor<B>,
-        k_beta: FloatTensor<B>,
-    },
+    On(#[extension_type] QkNorms<B>),
 }
 
 /// RoPE's tables `[B or 1, 1, N, d]` (`sin` signed per quarter, as `RopeTables` keeps it).
@@ -84,7 +79,7 @@ pub trait QkvAttentionOps: FusedNormOps + RopeOps + LeanAttentionOps {
         #[extension_type] rope: RopeParams<Self>,
         layout: QkvLayout,
     ) -> FloatTensor<Self> {
-        let norms = QkNorms::of(norms);
+        let norms = norms.on();
         forward::<Self>(qkv, norms.as_ref(), tables(rope).as_ref(), layout).out
     }
 }
@@ -101,29 +96,20 @@ pub(crate) fn tables<B: Backend>(rope: RopeParams<B>) -> Option<(FloatTensor<B>,
 }
 
 /// The qk-norms' parameters, each `[d]`.
-#[derive(Debug, Clone)]
-pub(crate) struct QkNorms<B: Backend> {
+#[derive(ExtensionType, Debug, Clone)]
+pub struct QkNorms<B: Backend> {
     pub q_gamma: FloatTensor<B>,
     pub q_beta: FloatTensor<B>,
     pub k_gamma: FloatTensor<B>,
     pub k_beta: FloatTensor<B>,
 }
 
-impl<B: Backend> QkNorms<B> {
-    pub fn of(params: QkNormParams<B>) -> Option<Self> {
-        match params {
+impl<B: Backend> QkNormParams<B> {
+    /// The parameters, if on.
+    pub(crate) fn on(self) -> Option<QkNorms<B>> {
+        match self {
             QkNormParams::Off => None,
-            QkNormParams::On {
-                q_gamma,
-                q_beta,
-                k_gamma,
-                k_beta,
-            } => Some(QkNorms {
-                q_gamma,
-                q_beta,
-                k_gamma,
-                k_beta,
-            }),
+            QkNormParams::On(p) => Some(p),
         }
     }
 }
@@ -313,12 +299,12 @@ pub fn qkv_attention(
 ) -> Tensor<4> {
     let norms = match norms {
         None => QkNormParams::Off,
-        Some([q_gamma, q_beta, k_gamma, k_beta]) => QkNormParams::On {
+        Some([q_gamma, q_beta, k_gamma, k_beta]) => QkNormParams::On(QkNorms {
             q_gamma: q_gamma.into_dispatch(),
             q_beta: q_beta.into_dispatch(),
             k_gamma: k_gamma.into_dispatch(),
             k_beta: k_beta.into_dispatch(),
-        },
+        }),
     };
     let rope = match rope {
         None => RopeParams::Off,

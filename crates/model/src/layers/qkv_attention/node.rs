@@ -98,7 +98,7 @@ impl<B: QkvAttentionOps, C: CheckpointStrategy> QkvAttentionOps for Autodiff<B, 
         // The tables are constants of the graph: no gradient flows to them.
         let rope = tables(rope).map(|(c, s)| (c.into_primitive(), s.into_primitive()));
         let block = layout.block;
-        match QkNorms::of(norms) {
+        match norms.on() {
             None => {
                 let nodes = [qkv.node()];
                 let saved = forward::<B>(qkv.into_primitive(), None, rope.as_ref(), layout);
