@@ -7,7 +7,7 @@
 //!     [--future N] [--images FILE.safetensors] [--repeats N] [--chunk N] [--profile]
 //!     [--device cpu|wgpu|cuda] [--precision f32|f16|bf16] [--launches] [--norm fused|burn]
 //!     [--softmax fused|burn] [--rope fused|burn] [--residual fused|burn]
-//!     [--qkv fused|burn]
+//!     [--qkv fused|burn] [--gelu fused|burn]
 //! ```
 //!
 //! The peak RSS is the host process's; on a GPU `device_reserved_gib` is the device memory
@@ -195,6 +195,7 @@ fn main() {
     envision4d_model::bench::choose_rope(&args);
     envision4d_model::bench::choose_residual(&args);
     envision4d_model::bench::choose_qkv(&args);
+    envision4d_model::bench::choose_gelu(&args);
     pass(&model, &images, heads, train); // untimed warm-up
     for _ in 0..repeats {
         let (s, launches) = count_launches(show_launches, || pass(&model, &images, heads, train));

@@ -168,6 +168,17 @@ pub fn choose_residual(args: &[String]) {
     }
 }
 
+/// `--gelu fused|burn`: the MLPs' first bias and GELU on the GPU backends, the one kernel
+/// of [`crate::layers::gelu`] per pass (the default) or Burn's bias sum and GELU ops (whose
+/// backward differentiates the tanh approximation).
+pub fn choose_gelu(args: &[String]) {
+    match arg(args, "--gelu").as_deref() {
+        None | Some("fused") => crate::layers::gelu::set_fused_gelu(true),
+        Some("burn") => crate::layers::gelu::set_fused_gelu(false),
+        Some(other) => panic!("--gelu {other}: use fused or burn"),
+    }
+}
+
 /// `--qkv fused|burn`: training attention on the GPU backends as one autodiff node from the
 /// q/k/v projection ([`crate::layers::qkv_attention`], the default) or as Burn's reshape,
 /// permutation and three slices, then separate qk-norm, RoPE and attention nodes.

@@ -9,7 +9,7 @@
 //!     [--preset paper|tiny] [--image HxW] [--batch B] [--step S] [--repeats N]
 //!     [--device cpu|wgpu|cuda] [--checkpointing] [--launches] [--norm fused|burn]
 //!     [--adam fused|burn] [--softmax fused|burn] [--rope fused|burn] [--residual fused|burn]
-//!     [--qkv fused|burn]
+//!     [--qkv fused|burn] [--gelu fused|burn]
 //!     [--set KEY=VALUE]...
 //! ```
 //!
@@ -118,6 +118,7 @@ fn main() {
     envision4d_model::bench::choose_rope(&args);
     envision4d_model::bench::choose_residual(&args);
     envision4d_model::bench::choose_qkv(&args);
+    envision4d_model::bench::choose_gelu(&args);
     // `--adam fused|burn`: the optimiser's update on GPU backends, as `--norm` chooses the
     // LayerNorm.
     match arg(&args, "--adam").as_deref() {

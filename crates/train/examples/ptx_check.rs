@@ -1,5 +1,5 @@
 //! Compiles every CubeCL kernel of the project (the rasterizer's, the model's fused
-//! LayerNorm, attention rows, RoPE and LayerScale residual, the fused Adam, the NaN guard's check) to PTX for an NVIDIA architecture, on a
+//! LayerNorm, attention rows, RoPE, LayerScale residual and bias-GELU, the fused Adam, the NaN guard's check) to PTX for an NVIDIA architecture, on a
 //! machine without a GPU, through the LLVM route the CUDA runtime takes by default
 //! (`cubecl_llvm::PlironCompiler`, linked into every `cuda` build). A kernel that route
 //! cannot lower fails here, before a GPU lease is spent on it (docs/PERFORMANCE.md,
@@ -24,6 +24,7 @@ use cubecl::Compiler;
 use cubecl_llvm::nvptx::ptx_version::PtxVersion;
 use cubecl_llvm::{LlvmTarget, PlironArtifact, PlironCompiler, PlironOptions};
 use envision4d_model::layers::cube_rows::ROW_THREADS;
+use envision4d_model::layers::gelu::kernels as gelu;
 use envision4d_model::layers::lean_attention::kernels as attention;
 use envision4d_model::layers::norm::kernels as norm;
 use envision4d_model::layers::residual::kernels as residual;
@@ -200,6 +201,10 @@ fn main() {
         // Both comptime branches: with the gain's partial sums and without (a frozen gain).
         kernel!("scaled_residual_backward<gain>", residual::scaled_residual_backward::ScaledResidualBackward, Line, [T T T T T s s s], true),
         kernel!("scaled_residual_backward", residual::scaled_residual_backward::ScaledResidualBackward, Line, [T T T T T s s s], false),
+        kernel!("bias_gelu_forward", gelu::bias_gelu_forward::BiasGeluForward, Line, [T T T s s]),
+        // Both comptime branches: with the bias's partial sums and without (a frozen bias).
+        kernel!("bias_gelu_backward<bias>", gelu::bias_gelu_backward::BiasGeluBackward, Line, [T T T T T s s s], true),
+        kernel!("bias_gelu_backward", gelu::bias_gelu_backward::BiasGeluBackward, Line, [T T T T T s s s], false),
         kernel!("flag_non_finite", finite::flag_non_finite::FlagNonFinite, Line, [T T s]),
     ];
     let options = PlironOptions {

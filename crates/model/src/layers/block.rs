@@ -2,7 +2,7 @@
 //! `x += γ1 ⊙ Attn(LN1(x))`, `x += γ2 ⊙ MLP(LN2(x))`.
 
 use super::attention::{Attention, QkNorm};
-use super::cpu_gelu::gelu;
+use super::gelu::linear_gelu;
 use super::norm::layer_norm;
 use super::residual::scaled_residual;
 use super::rope::RopeTables;
@@ -41,7 +41,8 @@ impl LayerScale {
     }
 }
 
-/// `fc1 → GELU (erf) → fc2`.
+/// `fc1 → GELU (erf) → fc2`; fc1's bias and the GELU are one op on a GPU backend
+/// ([`linear_gelu`]).
 #[derive(Module, Debug)]
 pub struct Mlp {
     pub fc1: Linear,
@@ -61,7 +62,7 @@ impl Mlp {
     }
 
     pub fn forward<const D: usize>(&self, x: Tensor<D>) -> Tensor<D> {
-        self.fc2.forward(gelu(self.fc1.forward(x)))
+        self.fc2.forward(linear_gelu(&self.fc1, x))
     }
 }
 

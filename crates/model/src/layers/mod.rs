@@ -6,6 +6,7 @@ pub mod cpu_attention;
 pub mod cpu_conv;
 pub mod cpu_gelu;
 pub mod cube_rows;
+pub mod gelu;
 pub mod lean_attention;
 pub mod norm;
 pub mod qkv_attention;
