@@ -2,6 +2,7 @@
 
 pub mod attention;
 pub mod block;
+mod chunked;
 pub mod cpu_attention;
 pub mod cpu_conv;
 pub mod cpu_gelu;

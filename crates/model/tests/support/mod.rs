@@ -80,3 +80,23 @@ pub fn rel_err_floor(a: &[f64], b: &[f64], floor: f64) -> f64 {
 pub fn rel_err(a: &[f64], b: &[f64]) -> f64 {
     rel_err_floor(a, b, 1e-300)
 }
+
+/// Holds per-channel sums of `rows` terms, summed in chunks of `chunk` rows then over the
+/// chunks, to recursive summation's bound `n·ε·Σ|terms|` (`scale` per channel, `n` a chunk
+/// plus the chunks, plus `slack` for roundings of the terms themselves).
+pub fn assert_chunked_sums(
+    what: &str,
+    got: &[f64],
+    want: &[f64],
+    scale: &[f64],
+    [rows, chunk, slack]: [usize; 3],
+) {
+    let n = chunk.min(rows) + rows.div_ceil(chunk) + slack;
+    for (c, ((f, w), s)) in got.iter().zip(want).zip(scale).enumerate() {
+        let bound = n as f64 * f64::from(f32::EPSILON) * s + 1e-37;
+        assert!(
+            (f - w).abs() <= bound,
+            "{what}[{c}] = {f:e}, f64 {w:e}, bound {bound:e}"
+        );
+    }
+}

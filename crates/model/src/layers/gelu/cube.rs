@@ -4,29 +4,24 @@
 
 use super::kernels::{bias_gelu_backward, bias_gelu_forward, BIAS_ROWS};
 use super::{decomposed_backward, decomposed_forward, BiasGeluOps};
+use crate::layers::chunked::{chunked_rows, sum_chunks};
 use burn::backend::ops::FloatTensorOps;
 use burn::backend::tensor::FloatTensor;
 use burn::backend::TensorMetadata;
-use burn::tensor::{DType, Shape};
+use burn::tensor::DType;
 use burn_cubecl::tensor::CubeTensor;
 use burn_cubecl::CubeBackend;
 use cubecl::{calculate_cube_count_elemwise, CubeDim};
 use envision4d_splat::kernels::buffers::{empty_f32, flat};
 
-/// `(rows, cols)` of the pre-activations when the kernels can take them: `z` (or its
-/// gradient, of the same shape) and the bias in f32, the bias as wide as the rows, not
-/// empty, and flat indices and the backward's unit count within u32. Forward and backward
-/// decide on the same shapes, so a node's two passes take the same path.
+/// `(rows, cols)` of the pre-activations when the kernels can take them: `z` and the bias
+/// in f32, the bias as wide as the rows, and a shape [`chunked_rows`] takes. Forward and
+/// backward decide on the same shapes, so a node's two passes take the same path.
 fn layout(z: &CubeTensor, bias: &CubeTensor) -> Option<(usize, usize)> {
-    let shape = z.shape();
-    let cols = *shape.to_vec().last()?;
-    let n = shape.num_elements();
+    let (rows, cols) = chunked_rows(&z.shape(), BIAS_ROWS)?;
     let f32s = z.dtype() == DType::F32 && bias.dtype() == DType::F32;
     let fits = bias.shape().num_elements() == cols;
-    // The backward's units number `chunks · cols`, a little over `n`: both must fit u32.
-    let units = cols.checked_mul(n.checked_div(cols)?.div_ceil(BIAS_ROWS as usize))?;
-    let indexable = u32::try_from(n.max(units)).is_ok();
-    (f32s && fits && n > 0 && indexable).then_some((n / cols, cols))
+    (f32s && fits).then_some((rows, cols))
 }
 
 /// A new uninitialised f32 buffer of `len` elements (see [`empty_f32`]).
@@ -90,13 +85,10 @@ impl BiasGeluOps for CubeBackend {
             chunks as u32,
             bias_grad,
         );
-        let dbias = if !bias_grad {
-            bias
-        } else if chunks == 1 {
-            part
+        let dbias = if bias_grad {
+            sum_chunks(part, chunks, cols)
         } else {
-            let part = CubeBackend::float_reshape(part, Shape::new([chunks, cols]));
-            CubeBackend::float_reshape(CubeBackend::float_sum_dim(part, 0), Shape::new([cols]))
+            bias
         };
         (CubeBackend::float_reshape(dz, shape), dbias)
     }

@@ -4,29 +4,26 @@
 
 use super::kernels::{scaled_residual_backward, scaled_residual_forward, GAIN_ROWS};
 use super::{decomposed_backward, decomposed_forward, ScaledResidualOps};
+use crate::layers::chunked::{chunked_rows, sum_chunks};
 use burn::backend::ops::FloatTensorOps;
 use burn::backend::tensor::FloatTensor;
 use burn::backend::TensorMetadata;
-use burn::tensor::{DType, Shape};
+use burn::tensor::DType;
 use burn_cubecl::tensor::CubeTensor;
 use burn_cubecl::CubeBackend;
 use cubecl::{calculate_cube_count_elemwise, CubeDim};
 use envision4d_splat::kernels::buffers::{empty_f32, flat};
 
 /// `(rows, cols)` of the tokens when the kernels can take them: both token tensors and the
-/// gain in f32, the tokens of one shape, the gain as wide as their rows, not empty, and
-/// flat indices and the backward's unit count within u32. Forward and backward decide on
-/// the same tensors' shapes, so a node's two passes take the same path.
+/// gain in f32, the tokens of one shape, the gain as wide as their rows, and a shape
+/// [`chunked_rows`] takes. Forward and backward decide on the same tensors' shapes, so a
+/// node's two passes take the same path.
 fn layout(a: &CubeTensor, b: &CubeTensor, gamma: &CubeTensor) -> Option<(usize, usize)> {
     let shape = a.shape();
-    let cols = *shape.to_vec().last()?;
-    let n = shape.num_elements();
+    let (rows, cols) = chunked_rows(&shape, GAIN_ROWS)?;
     let f32s = [a, b, gamma].iter().all(|t| t.dtype() == DType::F32);
     let fits = b.shape() == shape && gamma.shape().num_elements() == cols;
-    // The backward's units number `chunks · cols`, a little over `n`: both must fit u32.
-    let units = cols.checked_mul(n.checked_div(cols)?.div_ceil(GAIN_ROWS as usize))?;
-    let indexable = u32::try_from(n.max(units)).is_ok();
-    (f32s && fits && n > 0 && indexable).then_some((n / cols, cols))
+    (f32s && fits).then_some((rows, cols))
 }
 
 /// A new uninitialised f32 buffer of `len` elements (see [`empty_f32`]).
@@ -94,13 +91,10 @@ impl ScaledResidualOps for CubeBackend {
             chunks as u32,
             gain,
         );
-        let dgamma = if !gain {
-            gamma
-        } else if chunks == 1 {
-            part
+        let dgamma = if gain {
+            sum_chunks(part, chunks, cols)
         } else {
-            let part = CubeBackend::float_reshape(part, Shape::new([chunks, cols]));
-            CubeBackend::float_reshape(CubeBackend::float_sum_dim(part, 0), Shape::new([cols]))
+            gamma
         };
         (CubeBackend::float_reshape(du, shape), dgamma)
     }
