@@ -3,7 +3,6 @@
 //! they can take, and the last reduction of their partial sums.
 
 use burn::backend::ops::FloatTensorOps;
-use burn::backend::TensorMetadata;
 use burn::tensor::Shape;
 use burn_cubecl::tensor::CubeTensor;
 use burn_cubecl::CubeBackend;
