@@ -28,7 +28,9 @@ fn step(t: &mut Trainer, device: &Device) -> (StepReport, usize, usize) {
 /// panicked in `backward()` (the DPT resize has no bilinear backward there), and nothing
 /// held a GPU step to the CPU's numbers or its host round trips. One step of the tiny
 /// config with the motion head on, from the CPU trainer's initial weights moved to wgpu:
-/// the loss terms and every module's gradient norm equal the CPU's, and the step reads the
+/// the loss terms and every module's gradient norm equal the CPU's (the norms to 2e-5: with
+/// Burn's CubeCL GELU, whose backward is the tanh approximation's, the time blocks' was
+/// 1.8e-4 off; with the exact one at most 1.8e-6), and the step reads the
 /// host as often as on the CPU (its five checks) plus the rasterizer's fixed two (both
 /// camera tensors in one read, the intersection totals in the forward; the backward reuses
 /// its tile lists), not once per view.
@@ -67,8 +69,10 @@ fn a_training_step_on_wgpu_equals_the_cpu_step() {
     for group in GradGroup::ALL {
         match (gn.norm(group), wn.norm(group)) {
             (Some(g), Some(w)) => {
+                let (name, apart) = (group.name(), rel(g, w));
+                println!("{name} gradient norm: wgpu {g} vs cpu {w}, {apart:.2e} apart");
                 assert!(
-                    rel(g, w) < 1e-3,
+                    rel(g, w) < 2e-5,
                     "{} gradient norm: wgpu {g} vs cpu {w}",
                     group.name()
                 );
