@@ -153,23 +153,30 @@ impl<B: BiasGeluOps, C: CheckpointStrategy> BiasGeluOps for Autodiff<B, C> {
     }
 }
 
-/// Whether [`linear_gelu`] takes the fused op for this input and layer: a GPU (CubeCL)
-/// device, f32 input and parameters, a bias as wide as the output, the switch on.
+/// The fused op's own conditions: the switch on, every operand in f32, a GPU (CubeCL)
+/// device.
+fn fuses(dtypes: &[DType], device: &Device) -> bool {
+    fused_gelu_on() && dtypes.iter().all(|d| *d == DType::F32) && *device != Device::flex()
+}
+
+/// Whether [`linear_gelu`] takes the fused op for this input and layer: a bias as wide as
+/// the output, and [`bias_gelu`]'s conditions for the input and parameters.
 pub fn takes_fused<const D: usize>(x: &Tensor<D>, layer: &Linear) -> bool {
     let Some(bias) = &layer.bias else {
         return false;
     };
-    let f32s = [x.dtype(), layer.weight.dtype(), bias.dtype()] == [DType::F32; 3];
     let fits = bias.dims()[0] == layer.weight.dims()[1];
-    fused_gelu_on() && f32s && fits && x.device() != Device::flex()
+    fits && fuses(
+        &[x.dtype(), layer.weight.dtype(), bias.dtype()],
+        &x.device(),
+    )
 }
 
 /// `gelu(z + b)` for pre-activations `z` and a bias `b` as wide as their rows: the fused op
 /// on a GPU (CubeCL) device in f32 with the switch on, Burn's sum and GELU elsewhere.
 pub fn bias_gelu<const D: usize>(z: Tensor<D>, bias: Tensor<1>) -> Tensor<D> {
-    let f32s = [z.dtype(), bias.dtype()] == [DType::F32; 2];
     let fits = z.dims().last() == Some(&bias.dims()[0]);
-    if fused_gelu_on() && f32s && fits && z.device() != Device::flex() {
+    if fits && fuses(&[z.dtype(), bias.dtype()], &z.device()) {
         return Tensor::from_dispatch(<Dispatch as BiasGeluOps>::bias_gelu_forward(
             z.into_dispatch(),
             bias.into_dispatch(),
