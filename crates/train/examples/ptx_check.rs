@@ -197,10 +197,12 @@ fn main() {
         kernel!("score_grad", attention::score_grad::ScoreGrad, Line, [T T T T s s s]),
         kernel!("rope_rotate", rope::rope_rotate::RopeRotate, Line, [T T T T s s s s s], false),
         kernel!("rope_rotate<vjp>", rope::rope_rotate::RopeRotate, Line, [T T T T s s s s s], true),
-        kernel!("scaled_residual_forward", residual::scaled_residual_forward::ScaledResidualForward, Line, [T T T T s s]),
-        // Both comptime branches: with the gain's partial sums and without (a frozen gain).
-        kernel!("scaled_residual_backward<gain>", residual::scaled_residual_backward::ScaledResidualBackward, Line, [T T T T T s s s], true),
-        kernel!("scaled_residual_backward", residual::scaled_residual_backward::ScaledResidualBackward, Line, [T T T T T s s s], false),
+        kernel!("scaled_residual_forward", residual::scaled_residual_forward::ScaledResidualForward, Line, [T T T T T s s]),
+        // Every comptime branch: the gain's and the bias's partial sums, each or neither (frozen).
+        kernel!("scaled_residual_backward<gain, bias>", residual::scaled_residual_backward::ScaledResidualBackward, Line, [T T T T T T T s s s], true, true),
+        kernel!("scaled_residual_backward<gain>", residual::scaled_residual_backward::ScaledResidualBackward, Line, [T T T T T T T s s s], true, false),
+        kernel!("scaled_residual_backward<bias>", residual::scaled_residual_backward::ScaledResidualBackward, Line, [T T T T T T T s s s], false, true),
+        kernel!("scaled_residual_backward", residual::scaled_residual_backward::ScaledResidualBackward, Line, [T T T T T T T s s s], false, false),
         kernel!("bias_gelu_forward", gelu::bias_gelu_forward::BiasGeluForward, Line, [T T T s s]),
         // Both comptime branches: with the bias's partial sums and without (a frozen bias).
         kernel!("bias_gelu_backward<bias>", gelu::bias_gelu_backward::BiasGeluBackward, Line, [T T T T T s s s], true),

@@ -50,12 +50,18 @@ impl Attention {
 
     /// `x: [B, N, C]` → `[B, N, C]`; `rope` rotates q and k after the qk-norm.
     pub fn forward(&self, x: Tensor<3>, rope: Option<&RopeTables>) -> Tensor<3> {
+        self.proj.forward(self.heads(x, rope))
+    }
+
+    /// The heads' outputs side by side `[B, N, C]`, the input of `proj` (a block applies
+    /// `proj` in its residual).
+    pub fn heads(&self, x: Tensor<3>, rope: Option<&RopeTables>) -> Tensor<3> {
         let [b, n, c] = x.dims();
         let h = self.num_heads;
         let d = c / h;
         let qkv = self.qkv.forward(x);
         if let Some(out) = self.packed(qkv.clone(), rope) {
-            return self.proj.forward(out.swap_dims(1, 2).reshape([b, n, c]));
+            return out.swap_dims(1, 2).reshape([b, n, c]);
         }
         // [B, N, 3C] -> [3, B, H, N, d]: the 3C axis is [q | k | v], each split into heads.
         let qkv = qkv.reshape([b, n, 3, h, d]).permute([2, 0, 3, 1, 4]);
@@ -85,8 +91,7 @@ impl Attention {
         } else {
             attention(q, k, v, None, None, AttentionModuleOptions::default())
         };
-        let out = out.swap_dims(1, 2).reshape([b, n, c]);
-        self.proj.forward(out)
+        out.swap_dims(1, 2).reshape([b, n, c])
     }
 
     /// The attention `[B, H, N, d]` as one autodiff node from the projection (see

@@ -4,7 +4,7 @@
 use super::attention::{Attention, QkNorm};
 use super::gelu::linear_gelu;
 use super::norm::layer_norm;
-use super::residual::scaled_residual;
+use super::residual::projected_residual;
 use super::rope::RopeTables;
 use burn::module::{Module, Param};
 use burn::nn::{LayerNorm, LayerNormConfig, Linear, LinearConfig};
@@ -34,10 +34,11 @@ impl LayerScale {
         x * self.gamma.val().reshape([1, 1, dim])
     }
 
-    /// `x + self.forward(u)`, the block's residual: one fused op on a GPU backend
-    /// ([`scaled_residual`]), the same product and sum elsewhere.
-    pub fn residual(&self, x: Tensor<3>, u: Tensor<3>) -> Tensor<3> {
-        scaled_residual(x, u, self.gamma.val())
+    /// `x + self.forward(layer(h))`, the block's residual after its projection: the
+    /// projection's bias, the gain and the sum one fused op on a GPU backend
+    /// ([`projected_residual`]), Burn's `Linear`, product and sum elsewhere.
+    pub fn residual(&self, x: Tensor<3>, layer: &Linear, h: Tensor<3>) -> Tensor<3> {
+        projected_residual(x, layer, h, self.gamma.val())
     }
 }
 
@@ -62,7 +63,12 @@ impl Mlp {
     }
 
     pub fn forward<const D: usize>(&self, x: Tensor<D>) -> Tensor<D> {
-        self.fc2.forward(linear_gelu(&self.fc1, x))
+        self.fc2.forward(self.hidden(x))
+    }
+
+    /// `GELU(fc1(x))`, the input of `fc2` (a block applies `fc2` in its residual).
+    pub fn hidden<const D: usize>(&self, x: Tensor<D>) -> Tensor<D> {
+        linear_gelu(&self.fc1, x)
     }
 }
 
@@ -106,9 +112,9 @@ impl Block {
 
     /// `x: [B, N, C]`; `rope` only for frame/global blocks.
     pub fn forward(&self, x: Tensor<3>, rope: Option<&RopeTables>) -> Tensor<3> {
-        let attended = self.attn.forward(layer_norm(&self.norm1, x.clone()), rope);
-        let x = self.ls1.residual(x, attended);
-        let mixed = self.mlp.forward(layer_norm(&self.norm2, x.clone()));
-        self.ls2.residual(x, mixed)
+        let attended = self.attn.heads(layer_norm(&self.norm1, x.clone()), rope);
+        let x = self.ls1.residual(x, &self.attn.proj, attended);
+        let hidden = self.mlp.hidden(layer_norm(&self.norm2, x.clone()));
+        self.ls2.residual(x, &self.mlp.fc2, hidden)
     }
 }

@@ -1,14 +1,17 @@
-//! The LayerScale residual of every transformer block, `x + u ⊙ γ` (paper Sec. 3; the
-//! backbone's blocks), as one backend op with its own autodiff node.
+//! The LayerScale residual of every transformer block, `x + (h W + b) ⊙ γ` (paper Sec. 3;
+//! the backbone's blocks): after the matrix product of the projection before it (the
+//! attention's `proj`, the MLP's `fc2`), its bias, the gain and the sum as one backend op
+//! with its own autodiff node.
 //!
-//! Burn's ops take a product and a sum forward, and backward a product for `u`'s gradient
-//! and a product and reductions over the broadcast axes for `γ`'s, each a launch and a
-//! pass over the tokens; every block does this twice per pass (docs/PERFORMANCE.md, "Kernel
-//! launches of a step on a GPU backend"). On the CubeCL backends the op is one kernel
-//! forward and one backward (`kernels.rs`; a reduction more past [`kernels::GAIN_ROWS`]
-//! rows). `u`'s gradient rounds exactly as Burn's product, and the forward as Burn's
-//! product then sum on wgpu (CUDA may contract the two into one fused multiply-add);
-//! `γ`'s sums in another order. The CPU backend keeps Burn's ops.
+//! Burn's ops take a bias sum, a product and a sum forward, and backward a product for the
+//! projection's gradient and reductions over the broadcast axes for the bias's and `γ`'s,
+//! each a launch and a pass over the tokens; every block does this twice per pass
+//! (docs/PERFORMANCE.md, "Kernel launches of a step on a GPU backend"). On the CubeCL
+//! backends the op is one kernel forward and one backward (`kernels.rs`; a reduction more
+//! per parameter past [`kernels::GAIN_ROWS`] rows). The projection's gradient rounds
+//! exactly as Burn's product, and the forward as Burn's bias sum, product and sum on wgpu
+//! (CUDA may contract the last two into one fused multiply-add); the parameters' gradients
+//! sum in another order. The CPU backend keeps Burn's ops.
 
 mod cube;
 pub mod kernels;
@@ -20,7 +23,8 @@ use burn::backend::autodiff::Autodiff;
 use burn::backend::tensor::FloatTensor;
 use burn::backend::Dispatch;
 use burn::backend::{backend_extension, Backend, TensorMetadata};
-use burn::tensor::{DType, Device, Shape, Tensor};
+use burn::nn::Linear;
+use burn::tensor::{module::linear, DType, Device, Shape, Tensor};
 
 use super::norm::along_last;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -39,84 +43,114 @@ pub fn fused_residual_on() -> bool {
     FUSED.load(Ordering::Relaxed)
 }
 
-/// `y = x + u ⊙ γ` over tokens `[.., C]` and a gain `[C]`.
+/// `y = x + (u + b) ⊙ γ` over tokens `[.., C]`, a bias `[C]` and a gain `[C]`.
 #[backend_extension(Cube, Flex, Autodiff)]
 pub trait ScaledResidualOps: Backend {
-    /// `x + u · γ`, γ broadcast along the last axis.
+    /// `x + (u + b) · γ`, b and γ broadcast along the last axis.
     fn scaled_residual_forward(
         x: FloatTensor<Self>,
         u: FloatTensor<Self>,
+        bias: FloatTensor<Self>,
         gamma: FloatTensor<Self>,
     ) -> FloatTensor<Self> {
-        decomposed_forward::<Self>(x, u, gamma)
+        decomposed_forward::<Self>(x, u, bias, gamma)
     }
 
-    /// `(grad · γ, Σ_rows grad · u)`: the gradients of `u` and, with `gain`, of `γ` (else a
-    /// placeholder of γ's shape, which the caller drops). `x`'s gradient is `grad` itself.
+    /// `(grad · γ, Σ_rows grad · (u + b), Σ_rows grad · γ)`: the gradients of `u` and, when
+    /// asked for (`gain`, `bias_grad`), of γ and b. `x`'s gradient is `grad` itself.
     fn scaled_residual_backward(
         grad: FloatTensor<Self>,
         u: FloatTensor<Self>,
+        bias: FloatTensor<Self>,
         gamma: FloatTensor<Self>,
         gain: bool,
-    ) -> (FloatTensor<Self>, FloatTensor<Self>) {
-        decomposed_backward::<Self>(grad, u, gamma, gain)
+        bias_grad: bool,
+    ) -> (
+        FloatTensor<Self>,
+        Option<FloatTensor<Self>>,
+        Option<FloatTensor<Self>>,
+    ) {
+        decomposed_backward::<Self>(grad, u, bias, gamma, gain, bias_grad)
     }
 }
 
 impl ScaledResidualOps for burn::backend::Flex {}
 
-/// `γ [C]` as `[1, ..., 1, C]` of `like`'s rank.
-fn broadcast_gain<B: Backend>(gamma: FloatTensor<B>, like: &FloatTensor<B>) -> FloatTensor<B> {
-    along_last::<B>(gamma, like.shape().num_dims())
+/// A `[C]` parameter as `[1, ..., 1, C]` of `like`'s rank.
+fn broadcast<B: Backend>(v: FloatTensor<B>, like: &FloatTensor<B>) -> FloatTensor<B> {
+    along_last::<B>(v, like.shape().num_dims())
 }
 
-/// The residual in Burn's ops, the same two roundings as `x + u * γ` on tensors.
+/// `u + b`, the projection's output, in Burn's op.
+fn projected<B: Backend>(u: FloatTensor<B>, bias: FloatTensor<B>) -> FloatTensor<B> {
+    let bias = broadcast::<B>(bias, &u);
+    B::float_add(u, bias)
+}
+
+/// The residual in Burn's ops, the same three roundings as `x + (u + b) * γ` on tensors.
 fn decomposed_forward<B: Backend>(
     x: FloatTensor<B>,
     u: FloatTensor<B>,
+    bias: FloatTensor<B>,
     gamma: FloatTensor<B>,
 ) -> FloatTensor<B> {
-    let gain = broadcast_gain::<B>(gamma, &u);
-    B::float_add(x, B::float_mul(u, gain))
+    let gain = broadcast::<B>(gamma, &u);
+    B::float_add(x, B::float_mul(projected::<B>(u, bias), gain))
+}
+
+/// Column sums `[C]` of `t` `[.., C]` in Burn's ops.
+fn column_sums<B: Backend>(t: FloatTensor<B>, cols: usize) -> FloatTensor<B> {
+    let rows = t.shape().num_elements() / cols.max(1);
+    let t = B::float_reshape(t, Shape::new([rows, cols]));
+    B::float_reshape(B::float_sum_dim(t, 0), Shape::new([cols]))
 }
 
 /// The VJP in Burn's ops.
 fn decomposed_backward<B: Backend>(
     grad: FloatTensor<B>,
     u: FloatTensor<B>,
+    bias: FloatTensor<B>,
     gamma: FloatTensor<B>,
     gain: bool,
-) -> (FloatTensor<B>, FloatTensor<B>) {
-    let du = B::float_mul(grad.clone(), broadcast_gain::<B>(gamma.clone(), &grad));
-    if !gain {
-        return (du, gamma);
-    }
+    bias_grad: bool,
+) -> (
+    FloatTensor<B>,
+    Option<FloatTensor<B>>,
+    Option<FloatTensor<B>>,
+) {
     let cols = gamma.shape().num_elements();
-    let rows = grad.shape().num_elements() / cols.max(1);
-    let products = B::float_reshape(B::float_mul(grad, u), Shape::new([rows, cols]));
-    let dgamma = B::float_reshape(B::float_sum_dim(products, 0), Shape::new([cols]));
-    (du, dgamma)
+    let du = B::float_mul(grad.clone(), broadcast::<B>(gamma, &grad));
+    let dgamma = gain.then(|| {
+        let products = B::float_mul(grad, projected::<B>(u, bias));
+        column_sums::<B>(products, cols)
+    });
+    let dbias = bias_grad.then(|| column_sums::<B>(du.clone(), cols));
+    (du, dgamma, dbias)
 }
 
 #[derive(Debug)]
 struct ScaledResidualBackward;
 
-impl<B: ScaledResidualOps> Backward<B, 3> for ScaledResidualBackward {
-    /// `u` and γ (the residual stream `x` is not needed: the op is a sum in it).
-    type State = (FloatTensor<B>, FloatTensor<B>);
+impl<B: ScaledResidualOps> Backward<B, 4> for ScaledResidualBackward {
+    /// `u`, b and γ (the residual stream `x` is not needed: the op is a sum in it).
+    type State = (FloatTensor<B>, FloatTensor<B>, FloatTensor<B>);
 
-    fn backward(self, ops: Ops<Self::State, 3>, grads: &mut Gradients, _: &mut Checkpointer) {
+    fn backward(self, ops: Ops<Self::State, 4>, grads: &mut Gradients, _: &mut Checkpointer) {
         let grad = grads.consume::<B>(&ops.node);
-        let (u, gamma) = ops.state;
-        let [x_node, u_node, gamma_node] = ops.parents;
-        if u_node.is_some() || gamma_node.is_some() {
-            let gain = gamma_node.is_some();
-            let (du, dgamma) = B::scaled_residual_backward(grad.clone(), u, gamma, gain);
+        let (u, bias, gamma) = ops.state;
+        let [x_node, u_node, bias_node, gamma_node] = ops.parents;
+        if u_node.is_some() || bias_node.is_some() || gamma_node.is_some() {
+            let (gain, bias_grad) = (gamma_node.is_some(), bias_node.is_some());
+            let (du, dgamma, dbias) =
+                B::scaled_residual_backward(grad.clone(), u, bias, gamma, gain, bias_grad);
             if let Some(node) = u_node {
                 grads.register::<B>(node.id, du);
             }
-            if let Some(node) = gamma_node {
-                grads.register::<B>(node.id, dgamma);
+            if let (Some(node), Some(d)) = (gamma_node, dgamma) {
+                grads.register::<B>(node.id, d);
+            }
+            if let (Some(node), Some(d)) = (bias_node, dbias) {
+                grads.register::<B>(node.id, d);
             }
         }
         if let Some(node) = x_node {
@@ -129,18 +163,19 @@ impl<B: ScaledResidualOps, C: CheckpointStrategy> ScaledResidualOps for Autodiff
     fn scaled_residual_forward(
         x: FloatTensor<Self>,
         u: FloatTensor<Self>,
+        bias: FloatTensor<Self>,
         gamma: FloatTensor<Self>,
     ) -> FloatTensor<Self> {
-        let tensors = [x, u, gamma];
+        let tensors = [x, u, bias, gamma];
         let nodes = tensors.each_ref().map(|t| t.node());
-        let [x, u, gamma] = tensors.map(|t| t.into_primitive());
-        let y = B::scaled_residual_forward(x, u.clone(), gamma.clone());
+        let [x, u, bias, gamma] = tensors.map(|t| t.into_primitive());
+        let y = B::scaled_residual_forward(x, u.clone(), bias.clone(), gamma.clone());
         match ScaledResidualBackward
             .prepare::<C>(nodes)
             .compute_bound()
             .stateful()
         {
-            OpsKind::Tracked(prep) => prep.finish((u, gamma), y),
+            OpsKind::Tracked(prep) => prep.finish((u, bias, gamma), y),
             OpsKind::UnTracked(prep) => prep.finish(y),
         }
     }
@@ -148,34 +183,72 @@ impl<B: ScaledResidualOps, C: CheckpointStrategy> ScaledResidualOps for Autodiff
     fn scaled_residual_backward(
         grad: FloatTensor<Self>,
         u: FloatTensor<Self>,
+        bias: FloatTensor<Self>,
         gamma: FloatTensor<Self>,
         gain: bool,
-    ) -> (FloatTensor<Self>, FloatTensor<Self>) {
-        let (du, dgamma) = B::scaled_residual_backward(
+        bias_grad: bool,
+    ) -> (
+        FloatTensor<Self>,
+        Option<FloatTensor<Self>>,
+        Option<FloatTensor<Self>>,
+    ) {
+        let (du, dgamma, dbias) = B::scaled_residual_backward(
             grad.into_primitive(),
             u.into_primitive(),
+            bias.into_primitive(),
             gamma.into_primitive(),
             gain,
+            bias_grad,
         );
         let lift = <Self as burn::backend::AutodiffBackend>::from_inner;
-        (lift(du), lift(dgamma))
+        (lift(du), dgamma.map(lift), dbias.map(lift))
     }
 }
 
-/// `x + u ⊙ γ` for tokens `x`, `u` of one shape and a gain `γ` as wide as their rows: the
-/// fused op on a GPU (CubeCL) device in f32 with the switch on, Burn's ops elsewhere (the
-/// CPU, f16, other shapes: the same values).
-pub fn scaled_residual<const D: usize>(x: Tensor<D>, u: Tensor<D>, gamma: Tensor<1>) -> Tensor<D> {
-    let f32s = [x.dtype(), u.dtype(), gamma.dtype()] == [DType::F32; 3];
-    let fits = x.dims() == u.dims() && x.dims().last() == Some(&gamma.dims()[0]);
+/// `x + (u + b) ⊙ γ` for tokens `x`, `u` of one shape and a bias and a gain as wide as
+/// their rows: the fused op on a GPU (CubeCL) device in f32 with the switch on, Burn's ops
+/// elsewhere (the CPU, f16, other shapes: the same values).
+pub fn scaled_residual<const D: usize>(
+    x: Tensor<D>,
+    u: Tensor<D>,
+    bias: Tensor<1>,
+    gamma: Tensor<1>,
+) -> Tensor<D> {
+    let f32s = [x.dtype(), u.dtype(), bias.dtype(), gamma.dtype()] == [DType::F32; 4];
+    let width = x.dims().last().copied();
+    let fits =
+        x.dims() == u.dims() && width == Some(gamma.dims()[0]) && width == Some(bias.dims()[0]);
     if fused_residual_on() && f32s && fits && x.device() != Device::flex() {
         return Tensor::from_dispatch(<Dispatch as ScaledResidualOps>::scaled_residual_forward(
             x.into_dispatch(),
             u.into_dispatch(),
+            bias.into_dispatch(),
             gamma.into_dispatch(),
         ));
     }
-    let mut gain = [1usize; D];
-    gain[D - 1] = gamma.dims()[0];
-    x + u * gamma.reshape(gain)
+    let mut wide = [1usize; D];
+    wide[D - 1] = gamma.dims()[0];
+    x + (u + bias.reshape(wide)) * gamma.reshape(wide)
+}
+
+/// `x + layer(h) ⊙ γ`, a block's residual after its projection `layer`: the matrix product
+/// then [`scaled_residual`] with the layer's bias where the fused op applies (every block's
+/// projections have a bias); Burn's `Linear`, product and sum elsewhere.
+pub fn projected_residual<const D: usize>(
+    x: Tensor<D>,
+    layer: &Linear,
+    h: Tensor<D>,
+    gamma: Tensor<1>,
+) -> Tensor<D> {
+    let fused = fused_residual_on() && x.device() != Device::flex();
+    match &layer.bias {
+        Some(bias) if fused => {
+            scaled_residual(x, linear(h, layer.weight.val(), None), bias.val(), gamma)
+        }
+        _ => {
+            let mut wide = [1usize; D];
+            wide[D - 1] = gamma.dims()[0];
+            x + layer.forward(h) * gamma.reshape(wide)
+        }
+    }
 }
