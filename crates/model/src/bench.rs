@@ -157,9 +157,10 @@ pub fn choose_rope(args: &[String]) {
     }
 }
 
-/// `--residual fused|burn`: the blocks' LayerScale residual on the GPU backends, the one
-/// kernel of [`crate::layers::residual`] per pass (the default) or Burn's product and sum
-/// (and their backward: a product, a product and reductions).
+/// `--residual fused|burn`: the blocks' LayerScale residual with the projection's bias on
+/// the GPU backends, the one kernel of [`crate::layers::residual`] per pass (the default)
+/// or Burn's `Linear` bias sum, product and sum (and their backward: a product, and
+/// reductions for the bias and the gain).
 pub fn choose_residual(args: &[String]) {
     match arg(args, "--residual").as_deref() {
         None | Some("fused") => crate::layers::residual::set_fused_residual(true),
