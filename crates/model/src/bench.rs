@@ -96,8 +96,27 @@ impl Launches {
     /// to two dozen arguments, so its variants are summed under one line). Nothing for a
     /// counter without names.
     pub fn print_top(&self, n: usize) {
-        let Some(map) = &self.by_name else { return };
+        let mut rows: Vec<(usize, String)> =
+            self.by_kernel().into_iter().map(|(k, n)| (n, k)).collect();
+        rows.sort_by(|a, b| b.0.cmp(&a.0).then_with(|| a.1.cmp(&b.1)));
+        for (count, name) in rows.into_iter().take(n) {
+            println!("#   {count:>7} {name}");
+        }
+    }
+
+    /// Launches of the kernels whose short name (as [`Self::print_top`] writes it) is
+    /// `name`; 0 for a counter without names.
+    pub fn of(&self, name: &str) -> usize {
+        self.by_kernel().get(name).copied().unwrap_or(0)
+    }
+
+    /// Launches by short name: CubeCL's balanced type name up to its first generic
+    /// argument.
+    fn by_kernel(&self) -> HashMap<String, usize> {
         let mut rows: HashMap<String, usize> = HashMap::new();
+        let Some(map) = &self.by_name else {
+            return rows;
+        };
         for &(name, count) in map.lock().unwrap().values() {
             let balanced = type_name_format(name, TypeNameFormatLevel::Balanced);
             let short: Vec<&str> = balanced
@@ -108,11 +127,7 @@ impl Launches {
                 .collect();
             *rows.entry(short.join(" | ")).or_default() += count;
         }
-        let mut rows: Vec<(usize, String)> = rows.into_iter().map(|(k, n)| (n, k)).collect();
-        rows.sort_by(|a, b| b.0.cmp(&a.0).then_with(|| a.1.cmp(&b.1)));
-        for (count, name) in rows.into_iter().take(n) {
-            println!("#   {count:>7} {name}");
-        }
+        rows
     }
 }
 

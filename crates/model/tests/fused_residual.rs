@@ -307,3 +307,40 @@ fn fused_residual_launches_fewer_kernels() {
     );
     assert_eq!(fused[0], burn[0]);
 }
+
+/// Guards the block's use of the fused op (the wiring a kernel test cannot see: a
+/// projection whose bias or shape made the block fall back to Burn's ops): one block's
+/// forward and backward on wgpu launches the fused residual twice each way (after the
+/// attention and after the MLP) and no `Linear` bias sum for `proj` or `fc2`.
+#[test]
+fn a_block_takes_the_fused_residual_twice() {
+    use envision4d_model::layers::attention::QkNorm;
+    use envision4d_model::layers::block::{Block, BlockSpec};
+    let _turn = turn();
+    let Some(gpu) = gpu() else { return };
+    let device = gpu.autodiff();
+    let spec = BlockSpec {
+        dim: 32,
+        num_heads: 4,
+        mlp_ratio: 4,
+        qk_norm: QkNorm::On,
+        norm_eps: 1e-5,
+        layer_scale_init: 0.1,
+    };
+    let block = Block::new(spec, &device);
+    let x = Tensor::<3>::from_data(
+        TensorData::new(uniform(2 * 20 * 32, 1), [2, 20, 32]).convert_dtype(DType::F32),
+        &device,
+    )
+    .require_grad();
+    let pass = || {
+        let g = block.forward(x.clone(), None).sum().backward();
+        x.grad(&g).map(host).expect("dx")
+    };
+    let _ = pass();
+    let (_, launches) = count_launches(true, pass);
+    let forward = launches.of("ScaledResidualForward");
+    let backward = launches.of("ScaledResidualBackward");
+    println!("fused residual launches of one block: {forward} forward, {backward} backward");
+    assert_eq!((forward, backward), (2, 2));
+}
