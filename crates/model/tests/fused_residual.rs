@@ -311,7 +311,7 @@ fn fused_residual_launches_fewer_kernels() {
 /// Guards the block's use of the fused op (the wiring a kernel test cannot see: a
 /// projection whose bias or shape made the block fall back to Burn's ops): one block's
 /// forward and backward on wgpu launches the fused residual twice each way (after the
-/// attention and after the MLP) and no `Linear` bias sum for `proj` or `fc2`.
+/// attention and after the MLP).
 #[test]
 fn a_block_takes_the_fused_residual_twice() {
     use envision4d_model::layers::attention::QkNorm;
