@@ -205,20 +205,33 @@ impl<B: ScaledResidualOps, C: CheckpointStrategy> ScaledResidualOps for Autodiff
     }
 }
 
+/// The fused op's own conditions: the switch on, every operand in f32, a GPU (CubeCL)
+/// device.
+fn fuses(dtypes: &[DType], device: &Device) -> bool {
+    fused_residual_on() && dtypes.iter().all(|d| *d == DType::F32) && *device != Device::flex()
+}
+
+/// A `[C]` parameter's shape broadcast along the last axis of rank `D`.
+fn along_last_dims<const D: usize>(c: usize) -> [usize; D] {
+    let mut dims = [1usize; D];
+    dims[D - 1] = c;
+    dims
+}
+
 /// `x + (u + b) ⊙ γ` for tokens `x`, `u` of one shape and a bias and a gain as wide as
-/// their rows: the fused op on a GPU (CubeCL) device in f32 with the switch on, Burn's ops
-/// elsewhere (the CPU, f16, other shapes: the same values).
+/// their rows: the fused op where [`fuses`] holds, Burn's ops elsewhere (the CPU, f16,
+/// other shapes: the same values).
 pub fn scaled_residual<const D: usize>(
     x: Tensor<D>,
     u: Tensor<D>,
     bias: Tensor<1>,
     gamma: Tensor<1>,
 ) -> Tensor<D> {
-    let f32s = [x.dtype(), u.dtype(), bias.dtype(), gamma.dtype()] == [DType::F32; 4];
+    let dtypes = [x.dtype(), u.dtype(), bias.dtype(), gamma.dtype()];
     let width = x.dims().last().copied();
     let fits =
         x.dims() == u.dims() && width == Some(gamma.dims()[0]) && width == Some(bias.dims()[0]);
-    if fused_residual_on() && f32s && fits && x.device() != Device::flex() {
+    if fits && fuses(&dtypes, &x.device()) {
         return Tensor::from_dispatch(<Dispatch as ScaledResidualOps>::scaled_residual_forward(
             x.into_dispatch(),
             u.into_dispatch(),
@@ -226,13 +239,12 @@ pub fn scaled_residual<const D: usize>(
             gamma.into_dispatch(),
         ));
     }
-    let mut wide = [1usize; D];
-    wide[D - 1] = gamma.dims()[0];
+    let wide = along_last_dims::<D>(gamma.dims()[0]);
     x + (u + bias.reshape(wide)) * gamma.reshape(wide)
 }
 
 /// `x + layer(h) ⊙ γ`, a block's residual after its projection `layer`: the matrix product
-/// then [`scaled_residual`] with the layer's bias where the fused op applies (every block's
+/// then [`scaled_residual`] with the layer's bias where [`fuses`] holds (every block's
 /// projections have a bias); Burn's `Linear`, product and sum elsewhere.
 pub fn projected_residual<const D: usize>(
     x: Tensor<D>,
@@ -240,14 +252,23 @@ pub fn projected_residual<const D: usize>(
     h: Tensor<D>,
     gamma: Tensor<1>,
 ) -> Tensor<D> {
-    let fused = fused_residual_on() && x.device() != Device::flex();
     match &layer.bias {
-        Some(bias) if fused => {
+        Some(bias)
+            if fuses(
+                &[
+                    x.dtype(),
+                    h.dtype(),
+                    layer.weight.dtype(),
+                    bias.dtype(),
+                    gamma.dtype(),
+                ],
+                &x.device(),
+            ) =>
+        {
             scaled_residual(x, linear(h, layer.weight.val(), None), bias.val(), gamma)
         }
         _ => {
-            let mut wide = [1usize; D];
-            wide[D - 1] = gamma.dims()[0];
+            let wide = along_last_dims::<D>(gamma.dims()[0]);
             x + layer.forward(h) * gamma.reshape(wide)
         }
     }
