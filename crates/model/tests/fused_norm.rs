@@ -347,3 +347,36 @@ fn a_gamma_of_the_wrong_width_is_refused() {
     let ones = |n: usize| tensor(&vec![1.0; n], [n], &cpu, DType::F32);
     let _ = fused_layer_norm(x, ones(4), ones(8), 1e-5);
 }
+
+/// Guards the GPU op's own check of beta (which the packed attention calls without the public
+/// wrapper): a beta narrower than the rows is refused with the widths named, where the
+/// forward kernel read past its end and returned a result (and so did the decomposed body:
+/// the backends do not check broadcasts).
+#[test]
+fn the_gpu_op_refuses_a_narrow_beta() {
+    use burn::backend::Dispatch;
+    use envision4d_model::layers::norm::FusedNormOps;
+    let _turn = turn();
+    let Some(gpu) = gpu() else { return };
+    let x = tensor(&uniform(16, 1), [2, 8], &gpu, DType::F32);
+    let ones = |n: usize| tensor(&vec![1.0; n], [n], &gpu, DType::F32);
+    let (gamma, beta) = (ones(8), ones(4));
+    let run = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+        let (y, _, _) = <Dispatch as FusedNormOps>::fused_layer_norm_forward(
+            x.into_dispatch(),
+            gamma.into_dispatch(),
+            beta.into_dispatch(),
+            1e-5,
+        );
+        host(Tensor::<2>::from_dispatch(y))
+    }));
+    let message = run.expect_err("a beta of 4 was applied to rows of 8");
+    let text = message
+        .downcast_ref::<String>()
+        .cloned()
+        .unwrap_or_default();
+    assert!(
+        text.contains("LayerNorm beta of width 4 applied to rows of 8"),
+        "unexpected message: {text}"
+    );
+}

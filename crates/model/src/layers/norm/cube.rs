@@ -63,6 +63,9 @@ impl FusedNormOps for CubeBackend {
         beta: FloatTensor<Self>,
         epsilon: f64,
     ) -> (FloatTensor<Self>, FloatTensor<Self>, FloatTensor<Self>) {
+        // The kernel would read past a narrower gamma or beta (the backward never reads
+        // beta, and its gamma is the forward's).
+        super::assert_widths(&x.shape(), &gamma.shape(), &beta.shape());
         let Some(Rows { rows, cols }) = Rows::of(&x, &gamma) else {
             return decomposed_forward::<Self>(x, gamma, beta, epsilon);
         };

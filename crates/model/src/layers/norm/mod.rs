@@ -118,12 +118,32 @@ fn normalised<B: Backend>(
     B::float_mul(B::float_sub(x, mean), rstd)
 }
 
+/// Panics unless gamma and beta are as wide as the rows of `x`, naming the widths. The
+/// backends do not check broadcasts, so a narrower parameter would be read past its end, by
+/// the kernels and by the decomposed body alike; callers that skip [`fused_layer_norm`]
+/// (the packed attention) still get the check.
+pub(crate) fn assert_widths(x: &Shape, gamma: &Shape, beta: &Shape) {
+    let cols = x
+        .to_vec()
+        .last()
+        .copied()
+        .expect("LayerNorm of a rank-0 tensor");
+    for (name, t) in [("gamma", gamma), ("beta", beta)] {
+        let width = t.num_elements();
+        assert_eq!(
+            cols, width,
+            "LayerNorm {name} of width {width} applied to rows of {cols}"
+        );
+    }
+}
+
 fn decomposed_forward<B: Backend>(
     x: FloatTensor<B>,
     gamma: FloatTensor<B>,
     beta: FloatTensor<B>,
     epsilon: f64,
 ) -> (FloatTensor<B>, FloatTensor<B>, FloatTensor<B>) {
+    assert_widths(&x.shape(), &gamma.shape(), &beta.shape());
     let rank = x.shape().num_dims();
     let last = rank.checked_sub(1).expect("LayerNorm of a rank-0 tensor");
     let mean = B::float_mean_dim(x.clone(), last);

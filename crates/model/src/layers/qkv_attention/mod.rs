@@ -291,12 +291,34 @@ pub fn takes_packed(device: &Device, dtype: DType, has_norms: bool, has_rope: bo
 
 /// The op through the dispatch backend: the qk-norms as `[q_gamma, q_beta, k_gamma, k_beta]`
 /// and RoPE as `(cos, signed sin)`.
+///
+/// # Panics
+/// On a projection whose width is not `3 · heads · d`, or a norm parameter whose length is
+/// not the head width `d`, naming the widths: the split would mislabel the heads, and the
+/// norm's kernels would read past the parameter.
 pub fn qkv_attention(
     qkv: Tensor<3>,
     norms: Option<[Tensor<1>; 4]>,
     rope: Option<(Tensor<4>, Tensor<4>)>,
     layout: QkvLayout,
 ) -> Tensor<4> {
+    let width = qkv.dims()[2];
+    let heads = layout.heads;
+    assert!(
+        heads > 0 && width % (3 * heads) == 0,
+        "packed q/k/v projection of width {width} does not split into 3 x {heads} heads"
+    );
+    let head_dim = width / (3 * heads);
+    if let Some(params) = &norms {
+        let names = ["q_norm.gamma", "q_norm.beta", "k_norm.gamma", "k_norm.beta"];
+        for (name, t) in names.iter().zip(params) {
+            let len = t.dims()[0];
+            assert_eq!(
+                len, head_dim,
+                "qk-norm {name} of width {len} applied to heads of {head_dim}"
+            );
+        }
+    }
     let norms = match norms {
         None => QkNormParams::Off,
         Some([q_gamma, q_beta, k_gamma, k_beta]) => QkNormParams::On(QkNorms {
