@@ -5,15 +5,15 @@
 //! cargo bench -p envision4d-model --bench forward -- [--preset paper|tiny]
 //!     [--mode forward|train] [--heads all|none|depth|gaussians|motion] [--image HxW]
 //!     [--future N] [--images FILE.safetensors] [--repeats N] [--chunk N] [--profile]
-//!     [--device cpu|wgpu|cuda] [--precision f32|f16|bf16] [--launches] [--norm fused|burn]
-//!     [--softmax fused|burn] [--rope fused|burn] [--residual fused|burn]
+//!     [--device cpu|wgpu|cuda] [--precision f32|f16|bf16] [--launches]
+//!     [--launch-sites NAME] [--norm fused|burn] [--softmax fused|burn] [--rope fused|burn] [--residual fused|burn]
 //!     [--qkv fused|burn] [--gelu fused|burn]
 //! ```
 //!
 //! The peak RSS is the host process's; on a GPU `device_reserved_gib` is the device memory
 //! pool's reserved bytes after the pass (`nan` on the CPU, whose memory is the RSS), and
 //! `kernel_launches` the kernels the pass launched (0 on the CPU; `--launches` lists the
-//! most launched ones).
+//! most launched ones, `--launch-sites Copy` where those named like `Copy` came from).
 //!
 //! The weights are drawn (and every lazy parameter materialised) before any clock starts,
 //! then one untimed pass warms the allocator and the thread pool. Each timed pass prints a
@@ -27,7 +27,7 @@
 
 use burn::module::{Module, ModuleVisitor, Param};
 use burn::tensor::{Device, Distribution, Tensor, TensorData};
-use envision4d_model::bench::{arg, count_launches, device_reserved_gib, peak_rss_gib};
+use envision4d_model::bench::{arg, device_reserved_gib, peak_rss_gib, watch_launches, Launches};
 use envision4d_model::model::{Heads, Predictions};
 use envision4d_model::precision::Precision;
 use envision4d_model::{Envision4d, ModelConfig};
@@ -190,6 +190,14 @@ fn main() {
         "forward_warm_s"
     };
     let show_launches = args.iter().any(|a| a == "--launches");
+    let sites = arg(&args, "--launch-sites");
+    let counter = || {
+        let launches = Launches::new(show_launches);
+        match &sites {
+            Some(pattern) => launches.with_sites(pattern),
+            None => launches,
+        }
+    };
     envision4d_model::bench::choose_layer_norm(&args);
     envision4d_model::bench::choose_softmax(&args);
     envision4d_model::bench::choose_rope(&args);
@@ -198,7 +206,7 @@ fn main() {
     envision4d_model::bench::choose_gelu(&args);
     pass(&model, &images, heads, train); // untimed warm-up
     for _ in 0..repeats {
-        let (s, launches) = count_launches(show_launches, || pass(&model, &images, heads, train));
+        let (s, launches) = watch_launches(counter(), || pass(&model, &images, heads, train));
         println!(
             "{label}={s:.4} peak_rss_gib={:.2} device_reserved_gib={:.2} kernel_launches={}",
             peak_rss_gib(),
@@ -206,6 +214,7 @@ fn main() {
             launches.total()
         );
         launches.print_top(TOP_KERNELS);
+        launches.print_sites(TOP_KERNELS);
     }
     if args.iter().any(|a| a == "--profile") {
         let only = |depth, gaussians, motion| Heads {

@@ -65,6 +65,8 @@ pub fn device_reserved_gib(device: &Device) -> f64 {
 pub struct Launches {
     total: AtomicUsize,
     by_name: Option<Mutex<HashMap<usize, (&'static str, usize)>>>,
+    /// Call sites of the kernels whose short name contains the pattern (`--launch-sites`).
+    sites: Option<(String, Mutex<HashMap<String, usize>>)>,
 }
 
 impl LaunchObserver for Launches {
@@ -74,7 +76,77 @@ impl LaunchObserver for Launches {
             let mut map = map.lock().unwrap();
             map.entry(kernel.as_ptr() as usize).or_insert((kernel, 0)).1 += 1;
         }
+        if let Some((pattern, map)) = &self.sites {
+            if short_name(kernel).contains(pattern.as_str()) {
+                // Launches are recorded on the thread that issues the op, so its stack names
+                // the model code (or the autodiff node's backward) that asked for the kernel.
+                let site = call_site(&std::backtrace::Backtrace::force_capture().to_string());
+                *map.lock().unwrap().entry(site).or_default() += 1;
+            }
+        }
     }
+}
+
+/// Frames of the backend's own plumbing (and of this counter), skipped to reach the caller.
+const PLUMBING: [&str; 14] = [
+    "std::",
+    "core::",
+    "alloc::",
+    "cubecl",
+    "burn_cubecl",
+    "burn_backend",
+    "burn_std",
+    "burn_ir",
+    "burn_tensor::tensor::ops",
+    "envision4d_model::bench",
+    "__rust",
+    "rust_begin",
+    "backtrace",
+    "<unknown>",
+];
+
+/// Frames of a call site shown per line of [`Launches::print_sites`].
+const SITE_FRAMES: usize = 3;
+
+/// The first [`SITE_FRAMES`] frames of a printed backtrace outside [`PLUMBING`], innermost
+/// first, without their symbol hashes.
+fn call_site(trace: &str) -> String {
+    let frames = trace.lines().filter_map(|line| {
+        let (index, symbol) = line.trim_start().split_once(": ")?;
+        index.parse::<usize>().ok()?;
+        let symbol = symbol.trim();
+        let plain = symbol.trim_start_matches('<');
+        let plumbing = PLUMBING.iter().any(|p| plain.starts_with(p));
+        (!plumbing).then(|| strip_hash(symbol).to_string())
+    });
+    let site: Vec<String> = frames.take(SITE_FRAMES).collect();
+    if site.is_empty() {
+        "(no frame outside the backend; a release build without symbols?)".to_string()
+    } else {
+        site.join(" <- ")
+    }
+}
+
+/// `path::name::h0123456789abcdef` without its `::h…` hash suffix.
+fn strip_hash(symbol: &str) -> &str {
+    match symbol.rsplit_once("::h") {
+        Some((head, hash)) if hash.len() == 16 && hash.bytes().all(|b| b.is_ascii_hexdigit()) => {
+            head
+        }
+        _ => symbol,
+    }
+}
+
+/// CubeCL's balanced type name up to its first generic argument (`KernelBinop | MulOp`).
+fn short_name(kernel: &str) -> String {
+    let balanced = type_name_format(kernel, TypeNameFormatLevel::Balanced);
+    let short: Vec<&str> = balanced
+        .split(" | ")
+        .map(str::trim)
+        .filter(|part| !part.is_empty())
+        .take(2)
+        .collect();
+    short.join(" | ")
 }
 
 impl Launches {
@@ -88,6 +160,35 @@ impl Launches {
         Launches {
             total: AtomicUsize::new(0),
             by_name: named.then(Default::default),
+            sites: None,
+        }
+    }
+
+    /// Also records where each launch of a kernel whose short name (as [`Self::print_top`]
+    /// writes it) contains `pattern` came from: a backtrace per launch, so slow, for finding
+    /// which code launches, say, `Copy` kernels.
+    pub fn with_sites(mut self, pattern: &str) -> Self {
+        self.sites = Some((pattern.to_string(), Mutex::default()));
+        self
+    }
+
+    /// The `n` call sites of [`Self::with_sites`]'s kernels with the most launches, as
+    /// `count site` lines; nothing without sites.
+    pub fn print_sites(&self, n: usize) {
+        let Some((pattern, map)) = &self.sites else {
+            return;
+        };
+        let mut rows: Vec<(usize, String)> = map
+            .lock()
+            .unwrap()
+            .iter()
+            .map(|(site, &count)| (count, site.clone()))
+            .collect();
+        rows.sort_by(|a, b| b.0.cmp(&a.0).then_with(|| a.1.cmp(&b.1)));
+        let total: usize = rows.iter().map(|r| r.0).sum();
+        println!("# launches of kernels named like {pattern:?}: {total}, by call site");
+        for (count, site) in rows.into_iter().take(n) {
+            println!("#   {count:>7} {site}");
         }
     }
 
@@ -118,14 +219,7 @@ impl Launches {
             return rows;
         };
         for &(name, count) in map.lock().unwrap().values() {
-            let balanced = type_name_format(name, TypeNameFormatLevel::Balanced);
-            let short: Vec<&str> = balanced
-                .split(" | ")
-                .map(str::trim)
-                .filter(|part| !part.is_empty())
-                .take(2)
-                .collect();
-            *rows.entry(short.join(" | ")).or_default() += count;
+            *rows.entry(short_name(name)).or_default() += count;
         }
         rows
     }
@@ -133,7 +227,12 @@ impl Launches {
 
 /// Runs `pass` with its kernel launches counted (`named`: by kernel too).
 pub fn count_launches<T>(named: bool, pass: impl FnOnce() -> T) -> (T, Arc<Launches>) {
-    let launches = Arc::new(Launches::new(named));
+    watch_launches(Launches::new(named), pass)
+}
+
+/// Runs `pass` with its kernel launches recorded by `launches`.
+pub fn watch_launches<T>(launches: Launches, pass: impl FnOnce() -> T) -> (T, Arc<Launches>) {
+    let launches = Arc::new(launches);
     let watching = LaunchObservation::new(launches.clone());
     let out = pass();
     drop(watching);
@@ -205,5 +304,35 @@ pub fn choose_qkv(args: &[String]) {
         None | Some("fused") => crate::layers::qkv_attention::set_packed_qkv(true),
         Some("burn") => crate::layers::qkv_attention::set_packed_qkv(false),
         Some(other) => panic!("--qkv {other}: use fused or burn"),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Guards the call-site parser of `--launch-sites`: the backend's frames are skipped,
+    /// the caller's kept innermost first without their hashes, and a trace of plumbing only
+    /// says so rather than printing an empty site.
+    #[test]
+    fn a_launch_site_is_the_first_frames_outside_the_backend() {
+        let trace = "\
+   0: std::backtrace::Backtrace::force_capture::h0123456789abcdef
+   1: <envision4d_model::bench::Launches as cubecl_runtime::LaunchObserver>::launched
+   2: cubecl_runtime::client::ComputeClient::launch::h00000000000000aa
+   3: burn_cubecl::kernel::contiguous::into_contiguous::h1111111111111111
+   4: <burn_autodiff::ops::base::OpsStep<B,T,SB> as burn_autodiff::graph::Step>::step::h2222222222222222
+   5: envision4d_model::layers::attention::Attention::heads::h3333333333333333
+   6: envision4d_model::layers::block::Block::forward
+   7: main";
+        assert_eq!(
+            call_site(trace),
+            "<burn_autodiff::ops::base::OpsStep<B,T,SB> as burn_autodiff::graph::Step>::step \
+             <- envision4d_model::layers::attention::Attention::heads \
+             <- envision4d_model::layers::block::Block::forward"
+        );
+        let plumbing = "   0: std::rt::lang_start\n   1: core::ops::function::FnOnce::call_once";
+        assert!(call_site(plumbing).starts_with("(no frame"));
+        assert_eq!(strip_hash("a::b::hxyz"), "a::b::hxyz");
     }
 }

@@ -7,8 +7,8 @@
 //! ```text
 //! cargo bench -p envision4d-train --bench train_step -- [--config configs/waymo.toml]
 //!     [--preset paper|tiny] [--image HxW] [--batch B] [--step S] [--repeats N]
-//!     [--device cpu|wgpu|cuda] [--checkpointing] [--launches] [--norm fused|burn]
-//!     [--adam fused|burn] [--softmax fused|burn] [--rope fused|burn] [--residual fused|burn]
+//!     [--device cpu|wgpu|cuda] [--checkpointing] [--launches] [--launch-sites NAME]
+//!     [--norm fused|burn] [--adam fused|burn] [--softmax fused|burn] [--rope fused|burn] [--residual fused|burn]
 //!     [--qkv fused|burn] [--gelu fused|burn]
 //!     [--set KEY=VALUE]...
 //! ```
@@ -25,13 +25,15 @@
 //! step prints `train_step_s=<s> peak_rss_gib=<g> device_reserved_gib=<g>
 //! kernel_launches=<n>`: the host's peak RSS, the device memory pool's reserved bytes after
 //! the step (GPU backends; `nan` on the CPU, whose memory is the RSS), and the kernels the
-//! step launched (GPU backends; 0 on the CPU). `--launches` lists the most launched ones.
+//! step launched (GPU backends; 0 on the CPU). `--launches` lists the most launched ones;
+//! `--launch-sites Copy` lists where the kernels whose name contains `Copy` were launched
+//! from (a backtrace per such launch: slower, for finding them, not for timing).
 
 #[path = "../../../tests/support/paths.rs"]
 mod paths;
 
 use envision4d_data::HostClip;
-use envision4d_model::bench::{arg, count_launches, device_reserved_gib, peak_rss_gib};
+use envision4d_model::bench::{arg, device_reserved_gib, peak_rss_gib, watch_launches, Launches};
 use envision4d_train::batch::Batch;
 use envision4d_train::config::{Init, Stage, Teacher};
 use envision4d_train::Trainer;
@@ -113,6 +115,14 @@ fn main() {
         .unwrap_or_else(|e| panic!("{e}"));
     let checkpointing = args.iter().any(|a| a == "--checkpointing");
     let show_launches = args.iter().any(|a| a == "--launches");
+    let sites = arg(&args, "--launch-sites");
+    let counter = || {
+        let launches = Launches::new(show_launches);
+        match &sites {
+            Some(pattern) => launches.with_sites(pattern),
+            None => launches,
+        }
+    };
     envision4d_model::bench::choose_layer_norm(&args);
     envision4d_model::bench::choose_softmax(&args);
     envision4d_model::bench::choose_rope(&args);
@@ -175,7 +185,7 @@ fn main() {
     for i in 0..=repeats {
         trainer.step = step;
         let t = Instant::now();
-        let (r, launches) = count_launches(show_launches, || {
+        let (r, launches) = watch_launches(counter(), || {
             let r = trainer.train_step(&batch).unwrap_or_else(|e| panic!("{e}"));
             // The step reads its losses and checks back, but the optimizer's last update
             // may still be queued on a GPU backend: the clock stops when the device is done.
@@ -204,5 +214,6 @@ fn main() {
             r.outcome,
         );
         launches.print_top(TOP_KERNELS);
+        launches.print_sites(TOP_KERNELS);
     }
 }
