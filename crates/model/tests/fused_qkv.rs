@@ -348,41 +348,6 @@ fn only_training_on_a_gpu_takes_the_one_node() {
     assert!(!takes_packed(&gpu.autodiff(), f32, true, true));
 }
 
-/// Guards the op's width check: a qk-norm beta narrower than the heads is refused with the
-/// widths named (the norm's kernels would read past it), before any backend runs.
-#[test]
-#[should_panic(expected = "qk-norm k_norm.beta of width 4 applied to heads of 8")]
-fn a_norm_parameter_of_the_wrong_width_is_refused() {
-    let cpu = Device::flex();
-    let qkv = Tensor::<3>::from_data(
-        burn::tensor::TensorData::new(uniform(5 * 48, 3), [1, 5, 48]),
-        &cpu,
-    );
-    let ones = |n: usize| Tensor::<1>::ones([n], &cpu);
-    let norms = Some([ones(8), ones(8), ones(8), ones(4)]);
-    let layout = QkvLayout {
-        heads: 2,
-        epsilon: EPS,
-        block: 1024,
-    };
-    let _ = qkv_attention(qkv, norms, None, layout);
-}
-
-/// Guards the check on the projection's width: one that is not `3 · heads · d` is refused
-/// rather than split into mislabelled heads.
-#[test]
-#[should_panic(expected = "packed q/k/v projection of width 50 does not split into 3 x 2 heads")]
-fn a_projection_that_does_not_split_into_heads_is_refused() {
-    let cpu = Device::flex();
-    let qkv = Tensor::<3>::zeros([1, 5, 50], &cpu);
-    let layout = QkvLayout {
-        heads: 2,
-        epsilon: EPS,
-        block: 1024,
-    };
-    let _ = qkv_attention(qkv, None, None, layout);
-}
-
 /// Guards `Attention`'s packed path on a GPU: a module whose k-norm beta is narrower than its
 /// heads (built by hand; checkpoints are shape-checked on load) stops with the widths named
 /// instead of training on values read past the parameter.

@@ -1,5 +1,5 @@
 //! Compiles every CubeCL kernel of the project (the rasterizer's, the model's fused
-//! LayerNorm, attention rows, RoPE, LayerScale residual and bias-GELU, the fused Adam, the NaN guard's check) to PTX for an NVIDIA architecture, on a
+//! LayerNorm, attention rows, q/k/v heads, RoPE, LayerScale residual and bias-GELU, the fused Adam, the NaN guard's check) to PTX for an NVIDIA architecture, on a
 //! machine without a GPU, through the LLVM route the CUDA runtime takes by default
 //! (`cubecl_llvm::PlironCompiler`, linked into every `cuda` build). A kernel that route
 //! cannot lower fails here, before a GPU lease is spent on it (docs/PERFORMANCE.md,
@@ -27,6 +27,7 @@ use envision4d_model::layers::cube_rows::ROW_THREADS;
 use envision4d_model::layers::gelu::kernels as gelu;
 use envision4d_model::layers::lean_attention::kernels as attention;
 use envision4d_model::layers::norm::kernels as norm;
+use envision4d_model::layers::qkv_attention::heads::kernels as heads;
 use envision4d_model::layers::residual::kernels as residual;
 use envision4d_model::layers::rope::kernels as rope;
 use envision4d_splat::kernels::rasterize_forward::TILE;
@@ -208,6 +209,8 @@ fn main() {
         kernel!("bias_gelu_backward<bias>", gelu::bias_gelu_backward::BiasGeluBackward, Line, [T T T T T s s s], true),
         kernel!("bias_gelu_backward", gelu::bias_gelu_backward::BiasGeluBackward, Line, [T T T T T s s s], false),
         kernel!("flag_non_finite", finite::flag_non_finite::FlagNonFinite, Line, [T T s]),
+        kernel!("split_heads", heads::split_heads::SplitHeads, Line, [T T T T s s s s]),
+        kernel!("merge_heads", heads::merge_heads::MergeHeads, Line, [T T T T s s s s]),
     ];
     let options = PlironOptions {
         sm_arch: Some(SmArch::new(sm, sm >= 70)),

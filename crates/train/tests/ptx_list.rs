@@ -89,6 +89,8 @@ fn ptx_check_lists_every_launchable_kernel() {
         "rope_rotate",
         "scaled_residual_forward",
         "scaled_residual_backward",
+        "split_heads",
+        "merge_heads",
     ] {
         assert!(kernels.contains(outside_splat), "{outside_splat} not found");
     }

@@ -7,7 +7,9 @@
 //! eight launches, and passes over three times the projection, per attention backward, plus
 //! the copy back out of the head layout (docs/PERFORMANCE.md, "Kernel launches of a step on
 //! a GPU backend"). Here one node consumes the projection itself: the three gradients are
-//! written into one uninitialised buffer in the projection's layout, three launches in all.
+//! written into one uninitialised buffer in the projection's layout. On the CubeCL backends
+//! the split and that merge are one kernel each ([`heads`]), where the reshape of each
+//! permuted third was a copy (three a forward) and the merge three slice assignments.
 //!
 //! Inside, the node runs the same backend ops in the same order as the separate nodes do
 //! ([`FusedNormOps`], [`RopeOps`], [`LeanAttentionOps`]), so values and gradients are the
@@ -16,7 +18,10 @@
 //! their fused kernels (CubeCL backends, f32; see [`takes_packed`]); the CPU backend, whose
 //! qk-norm is Burn's own, keeps the separate ops.
 
+pub mod heads;
 mod node;
+
+pub use heads::HeadsOps;
 
 use super::lean_attention::LeanAttentionOps;
 use super::norm::{FusedNormOps, NormNeeds};
@@ -24,7 +29,7 @@ use super::rope::RopeOps;
 use burn::backend::tensor::FloatTensor;
 use burn::backend::Dispatch;
 use burn::backend::{backend_extension, Backend, ExtensionType, TensorMetadata};
-use burn::tensor::{DType, Device, Shape, Slice, Tensor};
+use burn::tensor::{DType, Device, Tensor};
 use std::sync::atomic::{AtomicBool, Ordering};
 
 /// Whether autodiff attention on the CubeCL backends takes the one node (on by default; the
@@ -72,7 +77,7 @@ pub enum RopeParams<B: Backend> {
 /// axis is `[q | k | v]`, each split into H heads of d), q and k layer-normalised per head
 /// and then rotated, where `norms` and `rope` are on.
 #[backend_extension(Cube, Flex, Autodiff)]
-pub trait QkvAttentionOps: FusedNormOps + RopeOps + LeanAttentionOps {
+pub trait QkvAttentionOps: FusedNormOps + RopeOps + LeanAttentionOps + HeadsOps {
     fn qkv_attention(
         qkv: FloatTensor<Self>,
         #[extension_type] norms: QkNormParams<Self>,
@@ -134,56 +139,6 @@ pub(crate) struct NormSaved<B: Backend> {
     pub rstd: FloatTensor<B>,
 }
 
-/// `[B, N, 3C]` → q, k, v `[B, H, N, d]`: the views and copies the separate nodes make
-/// (a reshape, a permutation to `[3, B, H, N, d]`, a slice and a reshape each).
-fn split<B: Backend>(qkv: FloatTensor<B>, heads: usize) -> [FloatTensor<B>; 3] {
-    let s = qkv.shape();
-    let (b, n, d) = (s[0], s[1], s[2] / 3 / heads);
-    let packed = B::float_permute(
-        B::float_reshape(qkv, Shape::new([b, n, 3, heads, d])),
-        &[2, 0, 3, 1, 4],
-    );
-    [0, 1, 2].map(|i| {
-        let part = B::float_slice(
-            packed.clone(),
-            &[
-                Slice::from(i..i + 1),
-                Slice::from(0..b),
-                Slice::from(0..heads),
-                Slice::from(0..n),
-                Slice::from(0..d),
-            ],
-        );
-        B::float_reshape(part, Shape::new([b, heads, n, d]))
-    })
-}
-
-/// The gradients of q, k and v `[B, H, N, d]` in the projection's layout `[B, N, 3C]`: each
-/// assigned, through a permuted view, into its third of one uninitialised buffer (which the
-/// three cover), where the separate nodes fill three zero buffers and sum them.
-fn merge<B: Backend>(parts: [FloatTensor<B>; 3]) -> FloatTensor<B> {
-    let s = parts[0].shape();
-    let (b, h, n, d) = (s[0], s[1], s[2], s[3]);
-    let device = parts[0].device();
-    let dtype = parts[0].dtype().into();
-    let mut out = B::float_empty(Shape::new([b, n, 3, h, d]), &device, dtype);
-    for (i, part) in parts.into_iter().enumerate() {
-        let view = B::float_permute(
-            B::float_reshape(part, Shape::new([b, 1, h, n, d])),
-            &[0, 3, 1, 2, 4],
-        );
-        let slot = [
-            Slice::from(0..b),
-            Slice::from(0..n),
-            Slice::from(i..i + 1),
-            Slice::from(0..h),
-            Slice::from(0..d),
-        ];
-        out = B::float_slice_assign(out, &slot, view);
-    }
-    B::float_reshape(out, Shape::new([b, n, 3 * h * d]))
-}
-
 /// The forward on the inner backend, keeping what the backward reads.
 pub(crate) fn forward<B: QkvAttentionOps>(
     qkv: FloatTensor<B>,
@@ -191,7 +146,7 @@ pub(crate) fn forward<B: QkvAttentionOps>(
     rope: Option<&(FloatTensor<B>, FloatTensor<B>)>,
     layout: QkvLayout,
 ) -> Saved<B> {
-    let [mut q, mut k, v] = split::<B>(qkv, layout.heads);
+    let [mut q, mut k, v] = B::split_heads(qkv, layout.heads);
     let mut normed = None;
     if let Some(p) = norms {
         let norm = |x: FloatTensor<B>, gamma: &FloatTensor<B>, beta: &FloatTensor<B>| {
@@ -270,7 +225,7 @@ pub(crate) fn backward<B: QkvAttentionOps>(
         }
     }
     QkvGrads {
-        qkv: needs[0].input.then(|| merge::<B>([dq, dk, g.v])),
+        qkv: needs[0].input.then(|| B::merge_heads([dq, dk, g.v])),
         norms: param_grads,
     }
 }
