@@ -7,7 +7,7 @@
 //!     [--future N] [--images FILE.safetensors] [--repeats N] [--chunk N] [--profile]
 //!     [--device cpu|wgpu|cuda] [--precision f32|f16|bf16] [--launches]
 //!     [--launch-sites NAME] [--norm fused|burn] [--softmax fused|burn] [--rope fused|burn] [--residual fused|burn]
-//!     [--qkv fused|burn] [--gelu fused|burn]
+//!     [--qkv fused|burn] [--split fused|burn] [--gelu fused|burn]
 //! ```
 //!
 //! The peak RSS is the host process's; on a GPU `device_reserved_gib` is the device memory
@@ -203,6 +203,7 @@ fn main() {
     envision4d_model::bench::choose_rope(&args);
     envision4d_model::bench::choose_residual(&args);
     envision4d_model::bench::choose_qkv(&args);
+    envision4d_model::bench::choose_split(&args);
     envision4d_model::bench::choose_gelu(&args);
     pass(&model, &images, heads, train); // untimed warm-up
     for _ in 0..repeats {

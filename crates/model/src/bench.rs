@@ -307,6 +307,16 @@ pub fn choose_qkv(args: &[String]) {
     }
 }
 
+/// `--split fused|burn`: the one node's split into heads and merge back, by the kernels of
+/// [`crate::layers::qkv_attention::heads`] (the default) or Burn's views and slices.
+pub fn choose_split(args: &[String]) {
+    match arg(args, "--split").as_deref() {
+        None | Some("fused") => crate::layers::qkv_attention::heads::set_heads_kernels(true),
+        Some("burn") => crate::layers::qkv_attention::heads::set_heads_kernels(false),
+        Some(other) => panic!("--split {other}: use fused or burn"),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

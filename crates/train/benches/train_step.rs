@@ -9,7 +9,7 @@
 //!     [--preset paper|tiny] [--image HxW] [--batch B] [--step S] [--repeats N]
 //!     [--device cpu|wgpu|cuda] [--checkpointing] [--launches] [--launch-sites NAME]
 //!     [--norm fused|burn] [--adam fused|burn] [--softmax fused|burn] [--rope fused|burn] [--residual fused|burn]
-//!     [--qkv fused|burn] [--gelu fused|burn]
+//!     [--qkv fused|burn] [--split fused|burn] [--gelu fused|burn]
 //!     [--set KEY=VALUE]...
 //! ```
 //!
@@ -128,6 +128,7 @@ fn main() {
     envision4d_model::bench::choose_rope(&args);
     envision4d_model::bench::choose_residual(&args);
     envision4d_model::bench::choose_qkv(&args);
+    envision4d_model::bench::choose_split(&args);
     envision4d_model::bench::choose_gelu(&args);
     // `--adam fused|burn`: the optimiser's update on GPU backends, as `--norm` chooses the
     // LayerNorm.
@@ -185,7 +186,13 @@ fn main() {
     for i in 0..=repeats {
         trainer.step = step;
         let t = Instant::now();
-        let (r, launches) = watch_launches(counter(), || {
+        // The warm-up only counts: its call sites would repeat the timed step's, slowly.
+        let watch = if i == 0 {
+            Launches::new(false)
+        } else {
+            counter()
+        };
+        let (r, launches) = watch_launches(watch, || {
             let r = trainer.train_step(&batch).unwrap_or_else(|e| panic!("{e}"));
             // The step reads its losses and checks back, but the optimizer's last update
             // may still be queued on a GPU backend: the clock stops when the device is done.

@@ -2,7 +2,7 @@
 //! [`super::kernels`], one launch each way; anything else Burn's views and slices.
 
 use super::kernels::{merge_heads, split_heads};
-use super::{merge, split, HeadsOps};
+use super::{heads_kernels_on, merge, split, HeadsOps};
 use burn::backend::ops::FloatTensorOps;
 use burn::backend::tensor::FloatTensor;
 use burn::backend::TensorMetadata;
@@ -12,8 +12,8 @@ use burn_cubecl::CubeBackend;
 use cubecl::{calculate_cube_count_elemwise, CubeDim};
 use envision4d_splat::kernels::buffers::{empty_f32, flat};
 
-/// `[B, N, H, d]` of the projection when the kernels can take it: f32, not empty, a width
-/// of `3 · heads · d` and indices within u32.
+/// `[B, N, H, d]` of the projection when the kernels can take it: the switch on, f32, not
+/// empty, a width of `3 · heads · d` and indices within u32.
 fn layout(dims: &[usize], dtype: DType, heads: usize) -> Option<[usize; 4]> {
     let &[b, n, width] = dims else {
         return None;
@@ -21,7 +21,8 @@ fn layout(dims: &[usize], dtype: DType, heads: usize) -> Option<[usize; 4]> {
     let splits = heads > 0 && width % (3 * heads) == 0;
     let len = b * n * width;
     let fits = len > 0 && u32::try_from(len).is_ok();
-    (dtype == DType::F32 && splits && fits).then(|| [b, n, heads, width / (3 * heads)])
+    (heads_kernels_on() && dtype == DType::F32 && splits && fits)
+        .then(|| [b, n, heads, width / (3 * heads)])
 }
 
 /// A new uninitialised f32 buffer of `len` elements (see [`empty_f32`]).

@@ -8,6 +8,21 @@ pub mod kernels;
 use burn::backend::tensor::FloatTensor;
 use burn::backend::{Backend, TensorMetadata};
 use burn::tensor::{Shape, Slice};
+use std::sync::atomic::{AtomicBool, Ordering};
+
+/// Whether the CubeCL backends take the kernels (on by default; the benchmarks' `--split
+/// burn` turns them off to measure Burn's views and slices in the same binary).
+static KERNELS: AtomicBool = AtomicBool::new(true);
+
+/// Switches the kernels on or off for the whole process.
+pub fn set_heads_kernels(on: bool) {
+    KERNELS.store(on, Ordering::Relaxed);
+}
+
+/// Whether the kernels are on ([`set_heads_kernels`]).
+pub fn heads_kernels_on() -> bool {
+    KERNELS.load(Ordering::Relaxed)
+}
 
 /// Split and merge of the packed `[B, N, 3C]` projection (the 3C axis `[q | k | v]`, each
 /// H heads of d) and the three head tensors `[B, H, N, d]`. Both only move values, so every
