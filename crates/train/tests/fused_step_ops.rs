@@ -275,3 +275,36 @@ fn the_finite_check_reads_views_not_buffers() {
     assert!(with_nan_at(5), "a NaN outside the slice is not the slice's");
     assert!(!with_nan_at(9), "a NaN inside the slice is found");
 }
+
+/// Guards the finite check's read of transposed tensors in memory order: a transposed view
+/// (as a weight's gradient arrives) is checked without a copy (one fill and two checks, where
+/// the copy made four launches), and a NaN in it is still found.
+#[test]
+fn the_finite_check_reads_a_transposed_tensor_without_a_copy() {
+    let _turn = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let Some(gpu) = gpu() else {
+        return;
+    };
+    let transposed = |nan_at: Option<usize>| {
+        let mut v = vec![0.5f32; 16];
+        if let Some(at) = nan_at {
+            v[at] = f32::NAN;
+        }
+        let stored = Tensor::<2>::from_data(TensorData::new(v, [2, 8]), &gpu);
+        let mut model = toy(&gpu);
+        model.a = Param::from_tensor(stored.swap_dims(0, 1).detach());
+        model
+    };
+    let clean = transposed(None);
+    let _ = params_finite(&clean, &HashSet::new()); // compile first
+    let (finite, counted) = count_launches(false, || params_finite(&clean, &HashSet::new()));
+    assert!(finite);
+    assert_eq!(counted.total(), 3, "one fill, two checks, no copy");
+    for at in [0, 7, 15] {
+        let bad = transposed(Some(at));
+        assert!(
+            !params_finite(&bad, &HashSet::new()),
+            "NaN at {at} not found"
+        );
+    }
+}

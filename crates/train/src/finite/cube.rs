@@ -8,9 +8,25 @@ use burn::backend::tensor::FloatTensor;
 use burn::backend::TensorMetadata;
 use burn::tensor::DType;
 use burn_cubecl::kernel::into_contiguous;
+use burn_cubecl::tensor::CubeTensor;
 use burn_cubecl::CubeBackend;
 use cubecl::{calculate_cube_count_elemwise, CubeDim};
 use envision4d_splat::kernels::buffers::flat;
+
+/// `x` with its axes permuted into memory order (strides descending, ties kept in place): a
+/// view, no copy. Where `x` is a permutation of a dense layout (a weight's gradient arrives
+/// transposed) that view is contiguous and [`flat`] takes it as it is, where `x` itself
+/// needed a copy; the check asks only whether any element is non-finite, which the order
+/// does not change. Views with gaps (a slice) stay non-contiguous and are copied.
+fn in_memory_order(x: CubeTensor) -> CubeTensor {
+    let strides: Vec<usize> = x.meta.strides().iter().copied().collect();
+    let mut axes: Vec<usize> = (0..strides.len()).collect();
+    axes.sort_by(|&a, &b| strides[b].cmp(&strides[a]));
+    if axes.iter().enumerate().all(|(i, &a)| i == a) {
+        return x;
+    }
+    CubeBackend::float_permute(x, &axes)
+}
 
 impl FiniteOps for CubeBackend {
     fn flag_non_finite(x: FloatTensor<Self>, flags: FloatTensor<Self>) -> FloatTensor<Self> {
@@ -22,7 +38,7 @@ impl FiniteOps for CubeBackend {
         if n == 0 {
             return flags;
         }
-        let x = flat(x);
+        let x = flat(in_memory_order(x));
         // Written in place when the pass owns the flag (moved in, handed back); a flag someone
         // else still holds is copied first, so no other handle sees it change.
         let flags = if flags.can_mut() {
