@@ -76,13 +76,13 @@ impl LaunchObserver for Launches {
             let mut map = map.lock().unwrap();
             map.entry(kernel.as_ptr() as usize).or_insert((kernel, 0)).1 += 1;
         }
-        if let Some((pattern, map)) = &self.sites {
-            if short_name(kernel).contains(pattern.as_str()) {
-                // Launches are recorded on the thread that issues the op, so its stack names
-                // the model code (or the autodiff node's backward) that asked for the kernel.
-                let site = call_site(&std::backtrace::Backtrace::force_capture().to_string());
-                *map.lock().unwrap().entry(site).or_default() += 1;
-            }
+        if let Some((pattern, map)) = &self.sites
+            && short_name(kernel).contains(pattern.as_str())
+        {
+            // Launches are recorded on the thread that issues the op, so its stack names
+            // the model code (or the autodiff node's backward) that asked for the kernel.
+            let site = call_site(&std::backtrace::Backtrace::force_capture().to_string());
+            *map.lock().unwrap().entry(site).or_default() += 1;
         }
     }
 }
@@ -117,11 +117,11 @@ fn call_site(trace: &str) -> String {
         let symbol = symbol.trim();
         let plain = symbol.trim_start_matches('<');
         let plumbing = PLUMBING.iter().any(|p| plain.starts_with(p));
-        (!plumbing).then(|| strip_hash(symbol).to_string())
+        (!plumbing).then(|| strip_hash(symbol).to_owned())
     });
     let site: Vec<String> = frames.take(SITE_FRAMES).collect();
     if site.is_empty() {
-        "(no frame outside the backend; a release build without symbols?)".to_string()
+        "(no frame outside the backend; a release build without symbols?)".to_owned()
     } else {
         site.join(" <- ")
     }
@@ -168,7 +168,7 @@ impl Launches {
     /// writes it) contains `pattern` came from: a backtrace per launch, so slow, for finding
     /// which code launches, say, `Copy` kernels.
     pub fn with_sites(mut self, pattern: &str) -> Self {
-        self.sites = Some((pattern.to_string(), Mutex::default()));
+        self.sites = Some((pattern.to_owned(), Mutex::default()));
         self
     }
 

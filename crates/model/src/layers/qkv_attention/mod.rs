@@ -260,7 +260,7 @@ pub fn qkv_attention(
     let width = qkv.dims()[2];
     let heads = layout.heads;
     assert!(
-        heads > 0 && width % (3 * heads) == 0,
+        heads > 0 && width.is_multiple_of(3 * heads),
         "packed q/k/v projection of width {width} does not split into 3 x {heads} heads"
     );
     let head_dim = width / (3 * heads);

@@ -18,7 +18,7 @@ fn layout(dims: &[usize], dtype: DType, heads: usize) -> Option<[usize; 4]> {
     let &[b, n, width] = dims else {
         return None;
     };
-    let splits = heads > 0 && width % (3 * heads) == 0;
+    let splits = heads > 0 && width.is_multiple_of(3 * heads);
     let len = b * n * width;
     let fits = len > 0 && u32::try_from(len).is_ok();
     (heads_kernels_on() && dtype == DType::F32 && splits && fits)
