@@ -189,15 +189,7 @@ fn main() {
     } else {
         "forward_warm_s"
     };
-    let show_launches = args.iter().any(|a| a == "--launches");
-    let sites = arg(&args, "--launch-sites");
-    let counter = || {
-        let launches = Launches::new(show_launches);
-        match &sites {
-            Some(pattern) => launches.with_sites(pattern),
-            None => launches,
-        }
-    };
+    let counter = || Launches::from_args(&args);
     envision4d_model::bench::choose_layer_norm(&args);
     envision4d_model::bench::choose_softmax(&args);
     envision4d_model::bench::choose_rope(&args);

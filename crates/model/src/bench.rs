@@ -164,6 +164,16 @@ impl Launches {
         }
     }
 
+    /// The counter the benches' flags ask for: by kernel with `--launches`, and with the call
+    /// sites of `--launch-sites NAME`'s kernels.
+    pub fn from_args(args: &[String]) -> Self {
+        let launches = Launches::new(args.iter().any(|a| a == "--launches"));
+        match arg(args, "--launch-sites") {
+            Some(pattern) => launches.with_sites(&pattern),
+            None => launches,
+        }
+    }
+
     /// Also records where each launch of a kernel whose short name (as [`Self::print_top`]
     /// writes it) contains `pattern` came from: a backtrace per launch, so slow, for finding
     /// which code launches, say, `Copy` kernels.

@@ -114,15 +114,7 @@ fn main() {
     let base = envision4d_model::bench::device(arg(&args, "--device").as_deref())
         .unwrap_or_else(|e| panic!("{e}"));
     let checkpointing = args.iter().any(|a| a == "--checkpointing");
-    let show_launches = args.iter().any(|a| a == "--launches");
-    let sites = arg(&args, "--launch-sites");
-    let counter = || {
-        let launches = Launches::new(show_launches);
-        match &sites {
-            Some(pattern) => launches.with_sites(pattern),
-            None => launches,
-        }
-    };
+    let counter = || Launches::from_args(&args);
     envision4d_model::bench::choose_layer_norm(&args);
     envision4d_model::bench::choose_softmax(&args);
     envision4d_model::bench::choose_rope(&args);
