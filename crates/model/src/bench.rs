@@ -109,7 +109,8 @@ const PLUMBING: [&str; 14] = [
 const SITE_FRAMES: usize = 3;
 
 /// The first [`SITE_FRAMES`] frames of a printed backtrace outside [`PLUMBING`], innermost
-/// first, without their symbol hashes.
+/// first, without their symbol hashes, and the first frame of this project's crates where
+/// those are all Burn's.
 fn call_site(trace: &str) -> String {
     let frames = trace.lines().filter_map(|line| {
         let (index, symbol) = line.trim_start().split_once(": ")?;
@@ -119,7 +120,13 @@ fn call_site(trace: &str) -> String {
         let plumbing = PLUMBING.iter().any(|p| plain.starts_with(p));
         (!plumbing).then(|| strip_hash(symbol).to_owned())
     });
-    let site: Vec<String> = frames.take(SITE_FRAMES).collect();
+    let frames: Vec<String> = frames.collect();
+    let mut site: Vec<String> = frames.iter().take(SITE_FRAMES).cloned().collect();
+    // Burn's API frames alone do not say which of our calls it was: add the first of ours.
+    let ours = |f: &String| f.trim_start_matches('<').starts_with("envision4d");
+    if !site.iter().any(ours) {
+        site.extend(frames.iter().find(|f| ours(f)).cloned());
+    }
     if site.is_empty() {
         "(no frame outside the backend; a release build without symbols?)".to_owned()
     } else {
@@ -332,8 +339,9 @@ mod tests {
     use super::*;
 
     /// Guards the call-site parser of `--launch-sites`: the backend's frames are skipped,
-    /// the caller's kept innermost first without their hashes, and a trace of plumbing only
-    /// says so rather than printing an empty site.
+    /// the caller's kept innermost first without their hashes, our first frame added where
+    /// the first three are Burn's API, and a trace of plumbing only says so rather than
+    /// printing an empty site.
     #[test]
     fn a_launch_site_is_the_first_frames_outside_the_backend() {
         let trace = "\
@@ -350,6 +358,19 @@ mod tests {
             "<burn_autodiff::ops::base::OpsStep<B,T,SB> as burn_autodiff::graph::Step>::step \
              <- envision4d_model::layers::attention::Attention::heads \
              <- envision4d_model::layers::block::Block::forward"
+        );
+        let api = "\
+   0: burn_dispatch::ops::float_reshape
+   1: burn_tensor::bridge::reshape
+   2: burn_tensor::tensor::api::base::Tensor<_,K>::reshape
+   3: burn_tensor::other
+   4: envision4d_model::dpt::head::Dpt::forward::h3333333333333333
+   5: envision4d_model::model::Model::forward";
+        assert_eq!(
+            call_site(api),
+            "burn_dispatch::ops::float_reshape <- burn_tensor::bridge::reshape \
+             <- burn_tensor::tensor::api::base::Tensor<_,K>::reshape \
+             <- envision4d_model::dpt::head::Dpt::forward"
         );
         let plumbing = "   0: std::rt::lang_start\n   1: core::ops::function::FnOnce::call_once";
         assert!(call_site(plumbing).starts_with("(no frame"));
