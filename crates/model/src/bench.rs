@@ -87,6 +87,15 @@ impl LaunchObserver for Launches {
     }
 }
 
+/// The `n` largest counts as `count key` lines, ties by key.
+fn print_counts(counts: HashMap<String, usize>, n: usize) {
+    let mut rows: Vec<(usize, String)> = counts.into_iter().map(|(k, c)| (c, k)).collect();
+    rows.sort_by(|a, b| b.0.cmp(&a.0).then_with(|| a.1.cmp(&b.1)));
+    for (count, key) in rows.into_iter().take(n) {
+        println!("#   {count:>7} {key}");
+    }
+}
+
 /// Frames of the backend's own plumbing (and of this counter), skipped to reach the caller.
 const PLUMBING: [&str; 14] = [
     "std::",
@@ -195,18 +204,10 @@ impl Launches {
         let Some((pattern, map)) = &self.sites else {
             return;
         };
-        let mut rows: Vec<(usize, String)> = map
-            .lock()
-            .unwrap()
-            .iter()
-            .map(|(site, &count)| (count, site.clone()))
-            .collect();
-        rows.sort_by(|a, b| b.0.cmp(&a.0).then_with(|| a.1.cmp(&b.1)));
-        let total: usize = rows.iter().map(|r| r.0).sum();
+        let sites = map.lock().unwrap().clone();
+        let total: usize = sites.values().sum();
         println!("# launches of kernels named like {pattern:?}: {total}, by call site");
-        for (count, site) in rows.into_iter().take(n) {
-            println!("#   {count:>7} {site}");
-        }
+        print_counts(sites, n);
     }
 
     /// The most launched kernels, as `count name` lines: CubeCL's balanced type name up to
@@ -214,12 +215,7 @@ impl Launches {
     /// to two dozen arguments, so its variants are summed under one line). Nothing for a
     /// counter without names.
     pub fn print_top(&self, n: usize) {
-        let mut rows: Vec<(usize, String)> =
-            self.by_kernel().into_iter().map(|(k, n)| (n, k)).collect();
-        rows.sort_by(|a, b| b.0.cmp(&a.0).then_with(|| a.1.cmp(&b.1)));
-        for (count, name) in rows.into_iter().take(n) {
-            println!("#   {count:>7} {name}");
-        }
+        print_counts(self.by_kernel(), n);
     }
 
     /// Launches of the kernels whose short name (as [`Self::print_top`] writes it) is

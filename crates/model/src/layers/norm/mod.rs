@@ -120,8 +120,8 @@ fn normalised<B: Backend>(
 
 /// Panics unless gamma and beta are as wide as the rows of `x`, naming the widths. The
 /// backends do not check broadcasts, so a narrower parameter would be read past its end, by
-/// the kernels and by the decomposed body alike; callers that skip [`fused_layer_norm`]
-/// (the packed attention) still get the check.
+/// the kernels and by the decomposed body alike. The backend ops check here, so callers that
+/// skip [`fused_layer_norm`] (the packed attention) get the same check and message.
 pub(crate) fn assert_widths(x: &Shape, gamma: &Shape, beta: &Shape) {
     let cols = x
         .to_vec()
@@ -287,17 +287,8 @@ pub fn fused_layer_norm<const D: usize>(
     beta: Tensor<1>,
     epsilon: f64,
 ) -> Tensor<D> {
-    let last = D
-        .checked_sub(1)
-        .expect("LayerNorm needs an input of rank 1 or more");
-    let cols = x.dims()[last];
-    for (name, t) in [("gamma", &gamma), ("beta", &beta)] {
-        let width = t.dims()[0];
-        assert_eq!(
-            cols, width,
-            "LayerNorm {name} of width {width} applied to rows of {cols}"
-        );
-    }
+    assert!(D >= 1, "LayerNorm needs an input of rank 1 or more");
+    assert_widths(&x.shape(), &gamma.shape(), &beta.shape());
     let (y, _mean, _rstd) = <Dispatch as FusedNormOps>::fused_layer_norm_forward(
         x.into_dispatch(),
         gamma.into_dispatch(),
