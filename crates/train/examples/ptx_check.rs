@@ -190,8 +190,10 @@ fn main() {
         kernel!("layer_norm_backward_input", norm::layer_norm_backward_input::LayerNormBackwardInput, Row, [T T T T T T s s]),
         kernel!("layer_norm_backward_params", norm::layer_norm_backward_params::LayerNormBackwardParams, Line, [T T T T T T s s s]),
         // Both comptime branches: the first step (no moments read) and the later ones.
-        kernel!("adam_update<first>", adam::adam_update::AdamUpdate, Line, [T T T T T T T s s s s s s], true),
-        kernel!("adam_update", adam::adam_update::AdamUpdate, Line, [T T T T T T T s s s s s s], false),
+        kernel!("adam_update<first>", adam::adam_update::AdamUpdate, Line, [T T T T T T T s s s s s s], true, false),
+        kernel!("adam_update", adam::adam_update::AdamUpdate, Line, [T T T T T T T s s s s s s], false, false),
+        kernel!("adam_update<first, strided>", adam::adam_update::AdamUpdate, Line, [T T T T T T T s s s s s s], true, true),
+        kernel!("adam_update<strided>", adam::adam_update::AdamUpdate, Line, [T T T T T T T s s s s s s], false, true),
         kernel!("softmax_rows", attention::softmax_rows::SoftmaxRows, Row, [T T T s s s]),
         kernel!("row_dot", attention::row_dot::RowDot, Row, [T T T s s]),
         kernel!("probs_from_lse", attention::probs_from_lse::ProbsFromLse, Line, [T T T s s s]),

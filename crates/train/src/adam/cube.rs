@@ -30,6 +30,17 @@ impl AdamOps for CubeBackend {
         }
         let param = flat(param);
         check_binding(&param, "Adam moment", n);
+        // A gradient that is not one contiguous run (a weight used transposed gets a
+        // transposed view) is read through its strides: a copy first was one launch more per
+        // such tensor, 72 a step of the tiny model (docs/PERFORMANCE.md).
+        let strided = !grad.is_contiguous();
+        // The first step reads no moments (the caller passes the gradient in their place):
+        // bind the flat parameter there, so a transposed gradient is not copied for them.
+        let (moment_1, moment_2) = if step.first {
+            (param.clone(), param.clone())
+        } else {
+            (flat(moment_1), flat(moment_2))
+        };
         let empty = || {
             empty_device_dtype(
                 param.client.clone(),
@@ -46,9 +57,9 @@ impl AdamOps for CubeBackend {
             calculate_cube_count_elemwise(&client, n, dim),
             dim,
             param.into_tensor_arg(),
-            flat(grad).into_tensor_arg(),
-            flat(moment_1).into_tensor_arg(),
-            flat(moment_2).into_tensor_arg(),
+            if strided { grad } else { flat(grad) }.into_tensor_arg(),
+            moment_1.into_tensor_arg(),
+            moment_2.into_tensor_arg(),
             p_out.clone().into_tensor_arg(),
             m_out.clone().into_tensor_arg(),
             v_out.clone().into_tensor_arg(),
@@ -59,6 +70,7 @@ impl AdamOps for CubeBackend {
             step.eps_hat,
             step.lr,
             step.first,
+            strided,
         );
         let shaped = |t| CubeBackend::float_reshape(t, shape.clone());
         (shaped(p_out), shaped(m_out), shaped(v_out))

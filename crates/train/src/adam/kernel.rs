@@ -10,6 +10,10 @@ use cubecl::prelude::*;
 /// start from `(1-β₁)·g` and `(1-β₂)·g²`, and `moment_1`/`moment_2` are not read), then
 /// `p -= ((m · factor) / (sqrt(v) + eps_hat)) · lr`, with the bias corrections folded into
 /// `factor = sqrt(1-β₂ᵗ) / (1-β₁ᵗ)` and `eps_hat = ε·sqrt(1-β₂ᵗ)` on the host.
+///
+/// `param` and the moments are flat; with `strided`, `grad` keeps the parameter's shape in
+/// its own strides and element `i` (row-major in that shape) is found through them, so a
+/// gradient that arrives as a transposed view is read in place rather than copied first.
 #[cube(launch)]
 #[allow(clippy::too_many_arguments)]
 pub fn adam_update(
@@ -27,10 +31,15 @@ pub fn adam_update(
     eps_hat: f32,
     lr: f32,
     #[comptime] first: bool,
+    #[comptime] strided: bool,
 ) {
     let i = ABSOLUTE_POS;
     if i < len as usize {
-        let g = grad[i];
+        let g = if strided {
+            grad[strided_offset(grad, i as u32) as usize]
+        } else {
+            grad[i]
+        };
         let mut m = (1.0f32 - beta_1) * g;
         let mut v = (1.0f32 - beta_2) * (g * g);
         if !first {
@@ -41,4 +50,19 @@ pub fn adam_update(
         moment_2_out[i] = v;
         param_out[i] = param[i] - ((m * factor) / (f32::sqrt(v) + eps_hat)) * lr;
     }
+}
+
+/// Where element `i` of `t`'s shape, counted row-major, sits in `t`'s own strides.
+#[cube]
+fn strided_offset(t: &Tensor<f32>, i: u32) -> u32 {
+    let mut rest = i;
+    let mut at = 0u32;
+    let mut axis = t.rank();
+    while axis > 0 {
+        axis -= 1;
+        let len = t.shape(axis) as u32;
+        at += (rest % len) * t.stride(axis) as u32;
+        rest /= len;
+    }
+    at
 }
