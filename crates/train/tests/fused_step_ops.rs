@@ -267,7 +267,11 @@ fn fused_adam_takes_strided_gradients() {
     let e = worst(&ours, &burn);
     assert!(e < 1e-6, "{e:e} from Burn's Adam");
     assert!(worst(&ours, &values(&toy(&gpu))) > 1e-3, "the steps moved");
-    assert_eq!(launches, [2, 2], "two tensors, two launches a step, no copy");
+    assert_eq!(
+        launches,
+        [2, 2],
+        "two tensors, two launches a step, no copy"
+    );
 }
 
 /// Guards the finite check's reads of views: a column slice of a buffer whose other columns
