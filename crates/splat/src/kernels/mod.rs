@@ -44,4 +44,5 @@ pub mod readback;
 pub mod scan;
 pub mod sort;
 pub mod splat_grad;
+pub mod strides;
 pub mod view_meta;

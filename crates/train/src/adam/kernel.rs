@@ -4,6 +4,7 @@
 //! step on a GPU backend").
 
 use cubecl::prelude::*;
+use envision4d_splat::kernels::strides::offset_over_axes;
 
 /// Adam on element `i`, in the order of Burn's `Adam` (so a step differs from it only by
 /// rounding): `m = β₁·m + (1-β₁)·g`, `v = β₂·v + (1-β₂)·g²` (on the first step the moments
@@ -36,7 +37,7 @@ pub fn adam_update(
     let i = ABSOLUTE_POS;
     if i < len as usize {
         let g = if strided {
-            grad[strided_offset(grad, i as u32) as usize]
+            grad[offset_over_axes(grad, i as u32, grad.rank()) as usize]
         } else {
             grad[i]
         };
@@ -50,19 +51,4 @@ pub fn adam_update(
         moment_2_out[i] = v;
         param_out[i] = param[i] - ((m * factor) / (f32::sqrt(v) + eps_hat)) * lr;
     }
-}
-
-/// Where element `i` of `t`'s shape, counted row-major, sits in `t`'s own strides.
-#[cube]
-fn strided_offset(t: &Tensor<f32>, i: u32) -> u32 {
-    let mut rest = i;
-    let mut at = 0u32;
-    let mut axis = t.rank();
-    while axis > 0 {
-        axis -= 1;
-        let len = t.shape(axis) as u32;
-        at += (rest % len) * t.stride(axis) as u32;
-        rest /= len;
-    }
-    at
 }

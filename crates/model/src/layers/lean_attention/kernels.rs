@@ -6,6 +6,7 @@
 
 use crate::layers::cube_rows::{cube_max, cube_sum, ROW_THREADS, SHARED_LEN};
 use cubecl::prelude::*;
+use envision4d_splat::kernels::strides::offset_over_axes;
 
 /// `p = softmax(s · scale)` of each row, and its log-sum-exp `lse = m + ln Σ exp(s · scale
 /// - m)` with `m` the row's maximum (so no exponent is positive: rows of logits in the
@@ -63,23 +64,6 @@ pub fn softmax_rows(
     }
 }
 
-/// Where row `row` of `t` starts: the row index spread over every axis but the last, in
-/// `t`'s own strides, so a strided view (the swapped gradient attention receives) is read in
-/// place rather than copied first.
-#[cube]
-fn row_start(t: &Tensor<f32>, row: u32) -> u32 {
-    let mut rest = row;
-    let mut at = 0u32;
-    let mut axis = t.rank() - 1;
-    while axis > 0 {
-        axis -= 1;
-        let len = t.shape(axis) as u32;
-        at += (rest % len) * t.stride(axis) as u32;
-        rest /= len;
-    }
-    at
-}
-
 /// `out[row] = Σ_c a[row, c] · b[row, c]`: the softmax VJP's row term `Δ = Σ dO · O`. `a`
 /// and `b` share their shape, each in its own strides; `out` is flat.
 #[cube(launch)]
@@ -90,7 +74,13 @@ pub fn row_dot(a: &Tensor<f32>, b: &Tensor<f32>, out: &mut Tensor<f32>, rows: u3
     }
     let t = UNIT_POS_X;
     let last = a.rank() - 1;
-    let (a0, b0) = (row_start(a, row), row_start(b, row));
+    // Where the row starts: the row index spread over every axis but the last, in each
+    // view's own strides, so a strided view (the swapped gradient attention receives) is
+    // read in place rather than copied first.
+    let (a0, b0) = (
+        offset_over_axes(a, row, last),
+        offset_over_axes(b, row, last),
+    );
     let (a_step, b_step) = (a.stride(last) as u32, b.stride(last) as u32);
     let per_unit = cols.div_ceil(ROW_THREADS);
     let mut partial = Shared::<[f32]>::new_slice(SHARED_LEN);
