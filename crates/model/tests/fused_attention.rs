@@ -180,3 +180,47 @@ fn fused_attention_rows_launch_fewer_kernels() {
         );
     }
 }
+
+/// Guards the one relayout of a strided output gradient: the model reads the attention's
+/// output through `swap_dims(1, 2)`, so its gradient arrives as a view Burn's matrix product
+/// copies before reading; the backward copies it once, not in both products of each of four
+/// query blocks (eight copies), so the swapped case launches at most one kernel more than the
+/// same case with a contiguous gradient, and both give the same values.
+#[test]
+fn a_swapped_gradient_is_relaid_out_once_per_backward() {
+    let _turn = turn();
+    let Some(gpu) = gpu() else { return };
+    let device = gpu.autodiff();
+    // 70 query rows in blocks of 20: three whole blocks and a partial fourth.
+    let plain = Case {
+        dims: [1, 2, 70, 300, 16],
+        gain: 1.0,
+        block: 2 * 300 * 20,
+        swapped: false,
+    };
+    let swapped = Case {
+        swapped: true,
+        ..plain
+    };
+    // Warm the kernel caches and autotune first, so both counts see settled matmuls.
+    let _ = (
+        run(plain, &device, DType::F32, true),
+        run(swapped, &device, DType::F32, true),
+    );
+    let (want, contiguous) = count_launches(false, || run(plain, &device, DType::F32, true));
+    let (got, strided) = count_launches(false, || run(swapped, &device, DType::F32, true));
+    let (contiguous, strided) = (contiguous.total(), strided.total());
+    println!("launches, forward and backward: contiguous gradient {contiguous}, swapped {strided}");
+    assert!(
+        strided <= contiguous + 1,
+        "swapped gradient: {strided} launches against {contiguous} for a contiguous one"
+    );
+    for i in 0..4 {
+        let e = rel_err(&got[i], &want[i]);
+        assert!(
+            e < 1e-6,
+            "{}: swapped and contiguous differ by {e:.2e}",
+            NAMES[i]
+        );
+    }
+}

@@ -11,6 +11,7 @@ use burn::backend::ops::FloatTensorOps;
 use burn::backend::tensor::FloatTensor;
 use burn::backend::TensorMetadata;
 use burn::tensor::{DType, Shape};
+use burn_cubecl::kernel::into_contiguous;
 use burn_cubecl::tensor::CubeTensor;
 use burn_cubecl::CubeBackend;
 use cubecl::{calculate_cube_count_elemwise, CubeDim};
@@ -44,6 +45,31 @@ fn in_place(t: &CubeTensor) -> bool {
     t.dtype() == DType::F32 && !t.meta.is_tiled() && u32::try_from(last).is_ok()
 }
 
+/// Whether Burn's matrix product on a CubeCL backend would copy `t` before reading it:
+/// its routines take row- or column-major matrices with the batch axes in order, and copy
+/// anything else, such as a batch axis striding less than a row (the attention output's
+/// gradient arrives as the `[B, H, N, d]` view of a `[B, N, H, d]` buffer, whose head axis
+/// strides `d` against a row's `H · d`). Broadcast axes (stride 0) are left to the product.
+fn matmul_relayouts(t: &CubeTensor) -> bool {
+    let strides = t.meta.strides();
+    let rank = strides.len();
+    if t.meta.is_tiled() || rank < 3 {
+        return false;
+    }
+    let (row, col) = (strides[rank - 2], strides[rank - 1]);
+    let mut previous = row.max(col);
+    for &stride in strides[..rank - 2].iter().rev() {
+        if stride == 0 {
+            continue;
+        }
+        if stride < previous {
+            return true;
+        }
+        previous = stride;
+    }
+    false
+}
+
 /// A new uninitialised f32 buffer of `len` elements (see [`empty_f32`]).
 fn empty(like: &CubeTensor, what: &str, len: usize) -> CubeTensor {
     empty_f32(like, what, len)
@@ -63,6 +89,14 @@ fn elementwise(like: &CubeTensor, len: usize) -> (cubecl::prelude::CubeCount, Cu
 }
 
 impl ScoreRows<CubeBackend> for Fused {
+    fn operand(grad: CubeTensor) -> CubeTensor {
+        if matmul_relayouts(&grad) {
+            into_contiguous(grad)
+        } else {
+            grad
+        }
+    }
+
     fn attend(qk: CubeTensor, v: CubeTensor, scale: f64) -> (CubeTensor, CubeTensor) {
         let Some((rows, cols)) = rows_of(&qk) else {
             return <Decomposed as ScoreRows<CubeBackend>>::attend(qk, v, scale);

@@ -107,6 +107,12 @@ pub trait ScoreRows<B: Backend> {
     ) -> FloatTensor<B>;
     /// `Σ a · b` over the last axis, kept as an axis of 1.
     fn row_dot(a: FloatTensor<B>, b: FloatTensor<B>) -> FloatTensor<B>;
+    /// The output's gradient as the backward's products read it: where the backend's matrix
+    /// product would copy it into another layout first (in both products of every block),
+    /// that copy made once. The default keeps it as it is.
+    fn operand(grad: FloatTensor<B>) -> FloatTensor<B> {
+        grad
+    }
 }
 
 /// [`ScoreRows`] in Burn's ops: what the CPU backend runs, and the CubeCL backends for
@@ -217,6 +223,7 @@ pub fn backward<B: Backend, R: ScoreRows<B>>(
 ) -> AttentionGrads<B> {
     let dims = q.shape().to_vec();
     let (nq, nk) = (dims[2], k.shape()[2]);
+    let grad = R::operand(grad);
     // Δ_i = Σ_d dO_id O_id = Σ_j P_ij dP_ij: the softmax VJP's row term.
     let delta = R::row_dot(grad.clone(), out);
     let kt = B::float_swap_dims(k.clone(), 2, 3);
