@@ -66,14 +66,18 @@ fn run(case: Case, device: &Device, dtype: DType, lean: bool) -> [Vec<f64>; 4] {
 
 const NAMES: [&str; 4] = ["out", "dq", "dk", "dv"];
 
-/// The cases, and the worst relative error each tensor may have against f64.
-fn cases() -> Vec<(Case, f64)> {
-    let case = |dims, gain, block| Case {
+/// A case whose loss reads the output as it is (see [`Case`]).
+fn case(dims: [usize; 5], gain: f64, block: usize) -> Case {
+    Case {
         dims,
         gain,
         block,
         swapped: false,
-    };
+    }
+}
+
+/// The cases, and the worst relative error each tensor may have against f64.
+fn cases() -> Vec<(Case, f64)> {
     let swapped = |c: Case| Case { swapped: true, ..c };
     vec![
         // Friendly rows; one key (the softmax is 1 and every score gradient 0).
@@ -148,12 +152,7 @@ fn fused_attention_rows_launch_fewer_kernels() {
     let _turn = turn();
     let Some(gpu) = gpu() else { return };
     let device = gpu.autodiff();
-    let case = Case {
-        dims: [1, 2, 24, 24, 8],
-        gain: 1.0,
-        block: 1 << 24,
-        swapped: false,
-    };
+    let case = case([1, 2, 24, 24, 8], 1.0, 1 << 24);
     // Warm the kernel caches and autotune first, so both counts see settled matmuls.
     let _ = run(case, &device, DType::F32, true);
     {
@@ -192,12 +191,7 @@ fn a_swapped_gradient_is_relaid_out_once_per_backward() {
     let Some(gpu) = gpu() else { return };
     let device = gpu.autodiff();
     // 70 query rows in blocks of 20: three whole blocks and a partial fourth.
-    let plain = Case {
-        dims: [1, 2, 70, 300, 16],
-        gain: 1.0,
-        block: 2 * 300 * 20,
-        swapped: false,
-    };
+    let plain = case([1, 2, 70, 300, 16], 1.0, 2 * 300 * 20);
     let swapped = Case {
         swapped: true,
         ..plain
