@@ -76,6 +76,14 @@ fn case(dims: [usize; 5], gain: f64, block: usize) -> Case {
     }
 }
 
+/// `run(case)` through the op in f32 and the kernels it launched, counted after one
+/// untimed run has compiled them and settled the matmuls' autotune.
+fn warmed_launches(case: Case, device: &Device) -> ([Vec<f64>; 4], usize) {
+    let _ = run(case, device, DType::F32, true);
+    let (out, launches) = count_launches(false, || run(case, device, DType::F32, true));
+    (out, launches.total())
+}
+
 /// The cases, and the worst relative error each tensor may have against f64.
 fn cases() -> Vec<(Case, f64)> {
     let swapped = |c: Case| Case { swapped: true, ..c };
@@ -153,18 +161,11 @@ fn fused_attention_rows_launch_fewer_kernels() {
     let Some(gpu) = gpu() else { return };
     let device = gpu.autodiff();
     let case = case([1, 2, 24, 24, 8], 1.0, 1 << 24);
-    // Warm the kernel caches and autotune first, so both counts see settled matmuls.
-    let _ = run(case, &device, DType::F32, true);
-    {
-        let _off = Unfused::new(set_fused_softmax);
-        let _ = run(case, &device, DType::F32, true);
-    }
-    let (fused, on) = count_launches(false, || run(case, &device, DType::F32, true));
+    let (fused, on) = warmed_launches(case, &device);
     let (decomposed, off) = {
         let _off = Unfused::new(set_fused_softmax);
-        count_launches(false, || run(case, &device, DType::F32, true))
+        warmed_launches(case, &device)
     };
-    let (on, off) = (on.total(), off.total());
     println!("launches of one block, forward and backward: fused {on}, decomposed {off}");
     assert!(
         on + 10 <= off,
@@ -196,14 +197,8 @@ fn a_swapped_gradient_is_relaid_out_once_per_backward() {
         swapped: true,
         ..plain
     };
-    // Warm the kernel caches and autotune first, so both counts see settled matmuls.
-    let _ = (
-        run(plain, &device, DType::F32, true),
-        run(swapped, &device, DType::F32, true),
-    );
-    let (want, contiguous) = count_launches(false, || run(plain, &device, DType::F32, true));
-    let (got, strided) = count_launches(false, || run(swapped, &device, DType::F32, true));
-    let (contiguous, strided) = (contiguous.total(), strided.total());
+    let (want, contiguous) = warmed_launches(plain, &device);
+    let (got, strided) = warmed_launches(swapped, &device);
     println!("launches, forward and backward: contiguous gradient {contiguous}, swapped {strided}");
     assert!(
         strided <= contiguous + 1,
