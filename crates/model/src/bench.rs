@@ -81,7 +81,11 @@ impl LaunchObserver for Launches {
         {
             // Launches are recorded on the thread that issues the op, so its stack names
             // the model code (or the autodiff node's backward) that asked for the kernel.
-            let site = call_site(&std::backtrace::Backtrace::force_capture().to_string());
+            let trace = std::backtrace::Backtrace::force_capture().to_string();
+            let mut site = call_site(&trace);
+            if trace.contains(MATMUL_FRAME) {
+                site.insert_str(0, MATMUL_ROUTINE);
+            }
             *map.lock().unwrap().entry(site).or_default() += 1;
         }
     }
@@ -113,6 +117,15 @@ const PLUMBING: [&str; 14] = [
     "backtrace",
     "<unknown>",
 ];
+
+/// A frame of the matrix product's routines (cubek's matmul crate): those relay an operand
+/// out along k when the candidate autotune picked wants it so (`make_k_contiguous`).
+const MATMUL_FRAME: &str = "cubek_matmul::";
+
+/// The prefix of a site whose launch came from inside a matrix product's routine. Which
+/// candidate wins autotune is a matter of timing, so such copies come and go between runs
+/// of the same code, and a test of our own copies leaves them out.
+pub const MATMUL_ROUTINE: &str = "(inside a matmul routine) ";
 
 /// Frames of a call site shown per line of [`Launches::print_sites`].
 const SITE_FRAMES: usize = 3;
@@ -208,6 +221,19 @@ impl Launches {
         let total: usize = sites.values().sum();
         println!("# launches of kernels named like {pattern:?}: {total}, by call site");
         print_counts(sites, n);
+    }
+
+    /// Launches of [`Self::with_sites`]'s kernels at the sites `keep` accepts; 0 without
+    /// sites.
+    pub fn at_sites(&self, keep: impl Fn(&str) -> bool) -> usize {
+        let Some((_, map)) = &self.sites else {
+            return 0;
+        };
+        let map = map.lock().unwrap();
+        map.iter()
+            .filter(|(site, _)| keep(site))
+            .map(|(_, n)| n)
+            .sum()
     }
 
     /// The most launched kernels, as `count name` lines: CubeCL's balanced type name up to

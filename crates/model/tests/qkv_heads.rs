@@ -2,7 +2,7 @@
 //! one kernel each way on a GPU backend, and the op's checks of its widths.
 
 use burn::tensor::{Device, Tensor};
-use envision4d_model::bench::count_launches;
+use envision4d_model::bench::{watch_launches, Launches, MATMUL_ROUTINE};
 use envision4d_model::layers::qkv_attention::{qkv_attention, QkvLayout};
 use support::{gpu, host, turn, uniform};
 
@@ -12,7 +12,8 @@ const EPS: f64 = 1e-5;
 
 /// Guards the wiring of the split and merge kernels into the one node (and that nothing
 /// else copies the thirds): one attention forward and backward on wgpu launches each once,
-/// no slice assignment and no copy of its own, and the projection's gradient still holds
+/// no slice assignment and no copy of its own (a matmul routine's relayout of an operand,
+/// which depends on autotune's timing, is not the attention's), and the projection's gradient still holds
 /// every third (a merge that dropped one would leave it out).
 #[test]
 fn the_split_and_the_merge_are_one_launch_each_on_wgpu() {
@@ -36,7 +37,7 @@ fn the_split_and_the_merge_are_one_launch_each_on_wgpu() {
         host(qkv.grad(&g).expect("the projection's gradient"))
     };
     let _ = pass(); // compile and tune first
-    let (grad, launches) = count_launches(true, pass);
+    let (grad, launches) = watch_launches(Launches::new(true).with_sites("Copy"), pass);
     for (kernel, expected) in [
         ("SplitHeads", 1),
         ("MergeHeads", 1),
@@ -44,7 +45,16 @@ fn the_split_and_the_merge_are_one_launch_each_on_wgpu() {
     ] {
         assert_eq!(launches.of(kernel), expected, "{kernel} launches");
     }
-    assert_eq!(launches.of("CopyKernel"), 0, "copies in the attention");
+    // A matmul candidate that autotune picked by timing may relay out an operand itself;
+    // that copy is the product's, not the split's, so only the others count.
+    let own = launches.at_sites(|site| !site.starts_with(MATMUL_ROUTINE));
+    if own != 0 {
+        launches.print_sites(10);
+    }
+    assert_eq!(
+        own, 0,
+        "copies in the attention outside the matmul routines"
+    );
     // Each third of every token's gradient is nonzero somewhere.
     let width = 3 * heads * d;
     for third in 0..3 {
