@@ -13,8 +13,8 @@ const EPS: f64 = 1e-5;
 /// Guards the wiring of the split and merge kernels into the one node (and that nothing
 /// else copies the thirds): one attention forward and backward on wgpu launches each once,
 /// no slice assignment and no copy of its own (a matmul routine's relayout of an operand,
-/// which depends on autotune's timing, is not the attention's), and the projection's gradient still holds
-/// every third (a merge that dropped one would leave it out).
+/// which depends on autotune's timing, is not the attention's), and the projection's
+/// gradient still holds every third (a merge that dropped one would leave it out).
 #[test]
 fn the_split_and_the_merge_are_one_launch_each_on_wgpu() {
     let _turn = turn();
